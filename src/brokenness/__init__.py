@@ -1,0 +1,36 @@
+"""brokenness: how structurally broken is an occupancy-grid map?
+
+Implements A. Birk, "Using Recursive Spectral Registrations to Determine Brokenness as
+Measure of Structural Map Errors", ICRA 2010: a map is broken with degree n when it splits
+into n + 1 partitions, each consistent with the reference on its own but rigidly "off"
+relative to each other.
+
+The pipeline, one subpackage each: :mod:`~brokenness.io` (maps in) ->
+:mod:`~brokenness.registration` (iFMI, random walk) -> :mod:`~brokenness.masking`
+(Psi, Psi_2) -> :mod:`~brokenness.measure` (Algorithm 1) -> :mod:`~brokenness.report`
+and :mod:`~brokenness.cli`; :mod:`~brokenness.simulation` makes broken maps of known degree.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from .errors import BrokennessError, MapError, MapFormatError, MapSizeError, ParameterError
+from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from .masking import picture_distance
+from .transform import RigidTransform
+
+__all__ = [
+    "FREE",
+    "OCCUPIED",
+    "UNKNOWN",
+    "BrokennessError",
+    "MapError",
+    "MapFormatError",
+    "MapSizeError",
+    "OccupancyMap",
+    "ParameterError",
+    "RigidTransform",
+    "__version__",
+    "picture_distance",
+]

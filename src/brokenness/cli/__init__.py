@@ -1,0 +1,1 @@
+"""The ``brokenness`` command-line interface (see :func:`brokenness.cli.main.main`)."""

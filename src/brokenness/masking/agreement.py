@@ -1,0 +1,120 @@
+"""Local agreement with the reference (Birk's Psi_2) and masking of matched cells.
+
+A cell of the map, moved by a transform onto the reference, *agrees* when the Manhattan
+distance from where it lands to the nearest reference cell of the same kind is at most
+``threshold`` cells. The reference's distance maps are computed once and reused by every
+step of the recursion (:class:`ReferenceIndex`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
+
+from ..errors import MapError
+from ..grid import OccupancyMap
+from .distance import lookup_distance, manhattan_distance_map
+
+__all__ = ["ReferenceIndex", "cell_points", "unmatched_reference"]
+
+
+def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
+    """``(x, y) = (column, row)`` coordinates of the ``True`` cells, shape (N, 2), row-major."""
+    rows, cols = np.nonzero(np.asarray(mask, dtype=bool))
+    return np.column_stack([cols, rows]).astype(np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceIndex:
+    """What the recursion needs to know about the reference, computed once.
+
+    Attributes
+    ----------
+    reference : OccupancyMap
+    occupied_distance, free_distance : ndarray of float32
+        Manhattan distance maps to the nearest occupied / free reference cell.
+    occupied_points : ndarray, shape (N, 2)
+        Coordinates of the occupied reference cells.
+    tree : scipy.spatial.cKDTree
+        Nearest-neighbour index of ``occupied_points`` (Euclidean), for refinement.
+    """
+
+    reference: OccupancyMap
+    occupied_distance: NDArray[np.float32]
+    free_distance: NDArray[np.float32]
+    occupied_points: NDArray[np.float64]
+    tree: cKDTree
+
+    @classmethod
+    def build(cls, reference: OccupancyMap) -> ReferenceIndex:
+        """Index a reference map.
+
+        Raises
+        ------
+        MapError
+            If the reference has no occupied cell.
+        """
+        occupied = reference.occupied
+        if not occupied.any():
+            raise MapError("the reference map has no occupied cell")
+        points = cell_points(occupied)
+        return cls(
+            reference=reference,
+            occupied_distance=manhattan_distance_map(occupied),
+            free_distance=manhattan_distance_map(reference.free),
+            occupied_points=points,
+            tree=cKDTree(points),
+        )
+
+    def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:
+        """Which (transformed) occupied map cells agree with the reference (Psi_2 <= c)."""
+        return lookup_distance(self.occupied_distance, points) <= threshold
+
+    def chance_agreement(self, threshold: float) -> float:
+        """Probability that a cell dropped at random on the known reference area agrees.
+
+        The fraction of known reference cells within ``threshold`` (Manhattan) of an occupied
+        reference cell: the agreement that noise gets by luck. Used by the stopping rule.
+        """
+        known = self.reference.known
+        n_known = int(np.count_nonzero(known))
+        if n_known == 0:
+            return 1.0
+        near = (self.occupied_distance <= threshold) & known
+        return float(np.count_nonzero(near)) / n_known
+
+
+def unmatched_reference(
+    reference_occupied: NDArray[np.bool_],
+    matched_points: ArrayLike,
+    threshold: float,
+) -> NDArray[np.bool_]:
+    """Remove from ``reference_occupied`` the cells explained by a matched partition.
+
+    Parameters
+    ----------
+    reference_occupied : ndarray of bool
+        The occupied reference cells still available for registration.
+    matched_points : array_like, shape (N, 2)
+        The partition's cells, already moved into the reference frame.
+    threshold : float
+        Reference cells within this Manhattan distance of a matched point are removed.
+
+    Returns
+    -------
+    ndarray of bool
+        A new mask; the input is not modified.
+    """
+    p = np.asarray(matched_points, dtype=float).reshape(-1, 2)
+    h, w = reference_occupied.shape
+    cols = np.rint(p[:, 0]).astype(np.intp)
+    rows = np.rint(p[:, 1]).astype(np.intp)
+    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    hit = np.zeros((h, w), dtype=bool)
+    hit[rows[inside], cols[inside]] = True
+    if not hit.any():
+        return reference_occupied.copy()
+    return reference_occupied & (manhattan_distance_map(hit) > threshold)

@@ -1,0 +1,140 @@
+"""The result of :func:`brokenness.compute_brokenness`: degree, partitions, figures."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..transform import RigidTransform
+
+__all__ = ["NOT_OCCUPIED", "UNASSIGNED", "BrokennessResult", "Partition"]
+
+#: Label of a cell of the map that is not occupied (free or unknown) in :attr:`BrokennessResult.labels`.
+NOT_OCCUPIED: int = -1
+#: Label of an occupied cell that belongs to no partition (noise, or too little to count).
+UNASSIGNED: int = -2
+
+
+@dataclass(frozen=True)
+class Partition:
+    """One part of the map that is consistent with the reference on its own (Birk's L^i).
+
+    Attributes
+    ----------
+    index : int
+        0 for the largest partition, then by decreasing size.
+    cells : int
+        Number of occupied map cells in the partition.
+    fraction : float
+        ``cells`` over the number of occupied cells of the map.
+    transform : RigidTransform
+        The whole transform from the original map to the reference for this partition
+        (cells, and metres in ``.world`` when both maps have geometry).
+    confidence : float
+        Share of the partition's cells that agree with the reference within the
+        threshold after refinement... i.e. the registration quality in [0, 1]: how much the
+        agreeing count exceeds what chance gives (1 = far above chance).
+    rotation_offset_deg : float
+        Rotation of this partition relative to the largest one, degrees (0 for the largest).
+    displacement : float
+        Mean distance, in reference cells, between where this partition's cells land under
+        its own transform and under the largest partition's (0 for the largest): how far
+        "off" it is.
+    displacement_m : float or None
+        The same in metres, when the reference resolution is known.
+    step_seconds : float
+        Time of the recursion step that found it (registration + masking).
+    """
+
+    index: int
+    cells: int
+    fraction: float
+    transform: RigidTransform
+    confidence: float
+    rotation_offset_deg: float
+    displacement: float
+    displacement_m: float | None
+    step_seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary."""
+        return {
+            "index": self.index,
+            "cells": self.cells,
+            "fraction": self.fraction,
+            "transform": self.transform.to_dict(),
+            "confidence": self.confidence,
+            "rotation_offset_deg": self.rotation_offset_deg,
+            "displacement_cells": self.displacement,
+            "displacement_m": self.displacement_m,
+            "step_seconds": self.step_seconds,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class BrokennessResult:
+    """Degree of brokenness of a map with respect to a reference, and its partitions.
+
+    Attributes
+    ----------
+    degree : int
+        Number of partitions minus one (0 = not broken). 0 also when no partition at all
+        could be found (then ``partitions`` is empty and every cell is unassigned).
+    partitions : tuple of Partition
+        Largest first.
+    labels : ndarray of int16
+        Same shape as the map: the partition index of each occupied cell,
+        :data:`UNASSIGNED` (-2) for occupied cells in no partition and :data:`NOT_OCCUPIED`
+        (-1) elsewhere.
+    occupied_cells : int
+        Occupied cells of the map.
+    unassigned_cells : int
+        Occupied cells that belong to no partition.
+    method : str
+        Registration method (``"ifmi"`` or ``"random-walk"``).
+    parameters : dict
+        Every option that shaped the result (threshold, stopping rule...), for the record.
+    seconds : float
+        Total wall-clock time.
+    """
+
+    degree: int
+    partitions: tuple[Partition, ...]
+    labels: NDArray[np.int16] = field(repr=False)
+    occupied_cells: int
+    unassigned_cells: int
+    method: str
+    parameters: dict[str, Any]
+    seconds: float
+
+    @property
+    def unassigned_fraction(self) -> float:
+        """Share of the occupied cells that belong to no partition."""
+        return self.unassigned_cells / self.occupied_cells if self.occupied_cells else 0.0
+
+    @property
+    def largest_fraction(self) -> float:
+        """Size of the largest partition as a share of the occupied cells (0 if none)."""
+        return self.partitions[0].fraction if self.partitions else 0.0
+
+    @property
+    def step_seconds(self) -> tuple[float, ...]:
+        """Time of each recursion step that produced a partition."""
+        return tuple(p.step_seconds for p in self.partitions)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (without the label image)."""
+        return {
+            "degree": self.degree,
+            "occupied_cells": self.occupied_cells,
+            "unassigned_cells": self.unassigned_cells,
+            "unassigned_fraction": self.unassigned_fraction,
+            "largest_fraction": self.largest_fraction,
+            "partitions": [p.to_dict() for p in self.partitions],
+            "method": self.method,
+            "parameters": dict(self.parameters),
+            "seconds": self.seconds,
+        }

@@ -1,0 +1,181 @@
+"""Rigid transforms between a map and its reference, in cells and in metres.
+
+Convention (used everywhere in :mod:`brokenness`): cell coordinates are
+``(x, y) = (column, row)`` of the array as loaded (row 0 = top row). A transform maps a cell
+of the *map* onto the *reference*::
+
+    x' = s * (cos(t) * x - sin(t) * y) + tx
+    y' = s * (sin(t) * x + cos(t) * y) + ty
+
+with ``t`` the rotation (radians, in (-pi, pi]) and ``s`` the scale, which is 1 unless the
+two maps have different resolutions (then ``s = map resolution / reference resolution``).
+Because rows grow downwards, a positive ``t`` turns the map clockwise on screen.
+
+When both maps know their resolution and origin, :attr:`RigidTransform.world` holds the same
+transform between the two *world* frames (metres, y up, counter-clockwise rotation), i.e. it
+maps a point of the map's world frame to the reference's world frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .grid import OccupancyMap
+
+__all__ = ["RigidTransform", "wrap_angle"]
+
+
+def wrap_angle(angle: float) -> float:
+    """Wrap an angle in radians to (-pi, pi]."""
+    wrapped = math.remainder(float(angle), 2.0 * math.pi)
+    if wrapped <= -math.pi:
+        wrapped += 2.0 * math.pi
+    return wrapped
+
+
+@dataclass(frozen=True)
+class RigidTransform:
+    """A 2D rotation, translation (and uniform scale) from map cells to reference cells.
+
+    Parameters
+    ----------
+    rotation : float
+        Angle ``t`` in radians; stored wrapped to (-pi, pi].
+    tx, ty : float
+        Translation in reference cells (or metres for a world transform).
+    scale : float
+        Uniform scale ``s``; 1 for a rigid transform.
+    world : RigidTransform, optional
+        The same transform between the world frames (metres), when known.
+    """
+
+    rotation: float = 0.0
+    tx: float = 0.0
+    ty: float = 0.0
+    scale: float = 1.0
+    world: RigidTransform | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "rotation", wrap_angle(self.rotation))
+        object.__setattr__(self, "tx", float(self.tx))
+        object.__setattr__(self, "ty", float(self.ty))
+        object.__setattr__(self, "scale", float(self.scale))
+
+    # -- views --------------------------------------------------------------------------------
+    @property
+    def rotation_deg(self) -> float:
+        """Rotation in degrees, in (-180, 180]."""
+        return math.degrees(self.rotation)
+
+    @property
+    def translation(self) -> tuple[float, float]:
+        """``(tx, ty)`` in reference cells."""
+        return (self.tx, self.ty)
+
+    @property
+    def translation_m(self) -> tuple[float, float] | None:
+        """World translation ``(tx, ty)`` in metres, or ``None`` without geometry."""
+        return None if self.world is None else self.world.translation
+
+    @property
+    def rotation_deg_world(self) -> float | None:
+        """World rotation in degrees (counter-clockwise), or ``None`` without geometry."""
+        return None if self.world is None else self.world.rotation_deg
+
+    @property
+    def matrix(self) -> NDArray[np.float64]:
+        """3x3 homogeneous matrix of the transform."""
+        c = self.scale * math.cos(self.rotation)
+        s = self.scale * math.sin(self.rotation)
+        return np.array([[c, -s, self.tx], [s, c, self.ty], [0.0, 0.0, 1.0]])
+
+    # -- algebra ------------------------------------------------------------------------------
+    @classmethod
+    def identity(cls) -> RigidTransform:
+        """The identity transform."""
+        return cls()
+
+    @classmethod
+    def from_matrix(cls, matrix: ArrayLike) -> RigidTransform:
+        """Read a transform from a 3x3 (or 2x3) similarity matrix without reflection.
+
+        Raises
+        ------
+        ValueError
+            If the matrix is not a rotation times a positive scale.
+        """
+        m = np.asarray(matrix, dtype=float)
+        a, b, tx = m[0]
+        c, d, ty = m[1]
+        scale = math.hypot(a, c)
+        if scale <= 0 or not np.allclose([a, b], [d, -c], atol=1e-9 * max(1.0, scale)):
+            raise ValueError("matrix is not a rotation with a uniform positive scale")
+        return cls(math.atan2(c, a), tx, ty, scale)
+
+    def apply(self, points: ArrayLike) -> NDArray[np.float64]:
+        """Map points of shape (N, 2), columns ``(x, y)``, through the transform."""
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        m = self.matrix
+        return p @ m[:2, :2].T + m[:2, 2]
+
+    def compose(self, first: RigidTransform) -> RigidTransform:
+        """The transform ``self o first``: apply ``first``, then ``self``.
+
+        World parts are composed when both have one.
+        """
+        world = None
+        if self.world is not None and first.world is not None:
+            world = self.world.compose(first.world)
+        t = RigidTransform.from_matrix(self.matrix @ first.matrix)
+        return RigidTransform(t.rotation, t.tx, t.ty, t.scale, world)
+
+    def inverse(self) -> RigidTransform:
+        """The inverse transform (reference cells to map cells)."""
+        t = RigidTransform.from_matrix(np.linalg.inv(self.matrix))
+        world = None if self.world is None else self.world.inverse()
+        return RigidTransform(t.rotation, t.tx, t.ty, t.scale, world)
+
+    def with_world(self, moving: OccupancyMap, reference: OccupancyMap) -> RigidTransform:
+        """Attach the world-frame version, given the two maps' geometry.
+
+        Returns ``self`` unchanged (without ``world``) when either map lacks a resolution or
+        an origin.
+        """
+        if not (moving.has_geometry and reference.has_geometry):
+            return RigidTransform(self.rotation, self.tx, self.ty, self.scale, None)
+        # world_ref <- cell_ref <- cell_map <- world_map; both cell->world maps flip y, so the
+        # product is a proper rotation.
+        w = reference.cell_to_world_matrix() @ self.matrix @ np.linalg.inv(
+            moving.cell_to_world_matrix()
+        )
+        world = RigidTransform.from_matrix(w)
+        return RigidTransform(self.rotation, self.tx, self.ty, self.scale, world)
+
+    def displacement(self, other: RigidTransform, points: ArrayLike) -> NDArray[np.float64]:
+        """Distance between where ``self`` and ``other`` put each point, shape (N,)."""
+        return np.linalg.norm(self.apply(points) - other.apply(points), axis=1)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dictionary (cells, degrees; world part in metres/degrees if known)."""
+        out: dict[str, object] = {
+            "rotation_deg": self.rotation_deg,
+            "translation_cells": [self.tx, self.ty],
+            "scale": self.scale,
+        }
+        if self.world is not None:
+            out["world"] = {
+                "rotation_deg": self.world.rotation_deg,
+                "translation_m": [self.world.tx, self.world.ty],
+            }
+        return out
+
+    def __repr__(self) -> str:
+        s = "" if self.scale == 1.0 else f", scale={self.scale:.4g}"
+        return (
+            f"RigidTransform(rotation_deg={self.rotation_deg:.3f}, "
+            f"translation=({self.tx:.2f}, {self.ty:.2f}){s})"
+        )
