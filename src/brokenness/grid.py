@@ -99,7 +99,9 @@ class OccupancyMap:
         if self.origin is not None:
             origin = tuple(float(v) for v in self.origin)
             if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
-                raise MapError(f"origin must be three finite numbers (x, y, yaw), got {self.origin!r}")
+                raise MapError(
+                    f"origin must be three finite numbers (x, y, yaw), got {self.origin!r}"
+                )
             object.__setattr__(self, "origin", origin)
 
     # -- constructors -------------------------------------------------------------------------

@@ -149,8 +149,10 @@ class RigidTransform:
             return RigidTransform(self.rotation, self.tx, self.ty, self.scale, None)
         # world_ref <- cell_ref <- cell_map <- world_map; both cell->world maps flip y, so the
         # product is a proper rotation.
-        w = reference.cell_to_world_matrix() @ self.matrix @ np.linalg.inv(
-            moving.cell_to_world_matrix()
+        w = (
+            reference.cell_to_world_matrix()
+            @ self.matrix
+            @ np.linalg.inv(moving.cell_to_world_matrix())
         )
         world = RigidTransform.from_matrix(w)
         return RigidTransform(self.rotation, self.tx, self.ty, self.scale, world)

@@ -9,7 +9,9 @@ step of the recursion (:class:`ReferenceIndex`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
@@ -18,7 +20,7 @@ from ..errors import MapError
 from ..grid import OccupancyMap
 from .distance import lookup_distance, manhattan_distance_map
 
-__all__ = ["ReferenceIndex", "cell_points", "unmatched_reference"]
+__all__ = ["ReferenceIndex", "cell_points", "manhattan_ball", "unmatched_reference"]
 
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
@@ -34,8 +36,10 @@ class ReferenceIndex:
     Attributes
     ----------
     reference : OccupancyMap
-    occupied_distance, free_distance : ndarray of float32
-        Manhattan distance maps to the nearest occupied / free reference cell.
+    occupied_distance : ndarray of float32
+        Manhattan distance map to the nearest occupied reference cell.
+    free_distance : ndarray of float32
+        The same for free cells (computed on first use).
     occupied_points : ndarray, shape (N, 2)
         Coordinates of the occupied reference cells.
     tree : scipy.spatial.cKDTree
@@ -44,7 +48,6 @@ class ReferenceIndex:
 
     reference: OccupancyMap
     occupied_distance: NDArray[np.float32]
-    free_distance: NDArray[np.float32]
     occupied_points: NDArray[np.float64]
     tree: cKDTree
 
@@ -64,10 +67,14 @@ class ReferenceIndex:
         return cls(
             reference=reference,
             occupied_distance=manhattan_distance_map(occupied),
-            free_distance=manhattan_distance_map(reference.free),
             occupied_points=points,
             tree=cKDTree(points),
         )
+
+    @cached_property
+    def free_distance(self) -> NDArray[np.float32]:
+        """Manhattan distance map to the nearest free reference cell."""
+        return manhattan_distance_map(self.reference.free)
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:
         """Which (transformed) occupied map cells agree with the reference (Psi_2 <= c)."""
@@ -113,8 +120,15 @@ def unmatched_reference(
     cols = np.rint(p[:, 0]).astype(np.intp)
     rows = np.rint(p[:, 1]).astype(np.intp)
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    hit = np.zeros((h, w), dtype=bool)
-    hit[rows[inside], cols[inside]] = True
-    if not hit.any():
-        return reference_occupied.copy()
-    return reference_occupied & (manhattan_distance_map(hit) > threshold)
+    hit = np.zeros((h, w), dtype=np.uint8)
+    hit[rows[inside], cols[inside]] = 1
+    radius = int(np.floor(threshold))
+    if radius > 0:
+        hit = cv2.dilate(hit, manhattan_ball(radius))
+    return reference_occupied & (hit == 0)
+
+
+def manhattan_ball(radius: int) -> NDArray[np.uint8]:
+    """Structuring element of the cells within Manhattan distance ``radius`` of the centre."""
+    r = np.arange(-radius, radius + 1)
+    return (np.abs(r)[:, None] + np.abs(r)[None, :] <= radius).astype(np.uint8)

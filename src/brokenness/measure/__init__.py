@@ -1,0 +1,6 @@
+"""Brokenness: Algorithm 1 of Birk (2010) and its result types."""
+
+from .recursion import compute_brokenness
+from .result import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition
+
+__all__ = ["NOT_OCCUPIED", "UNASSIGNED", "BrokennessResult", "Partition", "compute_brokenness"]

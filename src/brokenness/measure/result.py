@@ -12,7 +12,7 @@ from ..transform import RigidTransform
 
 __all__ = ["NOT_OCCUPIED", "UNASSIGNED", "BrokennessResult", "Partition"]
 
-#: Label of a cell of the map that is not occupied (free or unknown) in :attr:`BrokennessResult.labels`.
+#: Label of a map cell that is not occupied (free or unknown) in ``BrokennessResult.labels``.
 NOT_OCCUPIED: int = -1
 #: Label of an occupied cell that belongs to no partition (noise, or too little to count).
 UNASSIGNED: int = -2
@@ -34,9 +34,9 @@ class Partition:
         The whole transform from the original map to the reference for this partition
         (cells, and metres in ``.world`` when both maps have geometry).
     confidence : float
-        Share of the partition's cells that agree with the reference within the
-        threshold after refinement... i.e. the registration quality in [0, 1]: how much the
-        agreeing count exceeds what chance gives (1 = far above chance).
+        Share of the partition's cells that chance does not explain, in [0, 1]:
+        ``(k - n p0) / k`` for the ``k`` cells that agreed out of the ``n`` left, where ``p0``
+        is the probability that a randomly placed cell agrees (see the stopping rule).
     rotation_offset_deg : float
         Rotation of this partition relative to the largest one, degrees (0 for the largest).
     displacement : float

@@ -1,0 +1,488 @@
+"""Brokenness by recursive registration and masking (Birk 2010, Algorithm 1).
+
+The recursion, for a map M and a reference R::
+
+    T = occupied cells of M
+    repeat:
+        register T with R                      -> ranked candidate transforms
+        refine each candidate (ICP), keep the one under which most cells of T agree
+        L = cells of T that agree with R       (Psi_2: Manhattan distance to an occupied
+                                                 reference cell <= threshold)
+        stop if L is not significant           (see "Stopping rule" below)
+        if L agrees with an earlier partition's transform (loosely), add it there;
+        else count L as a new partition
+        T = T \\ L;  R = R \\ (reference cells matched by L)
+
+Stopping rule ("nothing significant is left")
+---------------------------------------------
+A candidate set L of ``k`` agreeing cells, out of the ``n`` cells left in T, becomes a
+partition only if all of these hold:
+
+1. ``k >= min_partition_cells`` and ``k >= min_partition_fraction * N`` (N = occupied
+   cells of the map): too small a part is noise, not a structural error;
+2. ``k`` is far above chance: a cell dropped at random on the known reference area agrees
+   with probability ``p0`` (the share of known reference cells within ``threshold`` of a
+   wall), so noise alone gives ``k ~ Binomial(n, p0)``; we ask
+   ``k >= n p0 + z sqrt(n p0 (1 - p0))`` with ``z = significance`` (default 6, which also
+   covers the maximisation over transforms done by the registration).
+
+Otherwise the recursion stops and the cells left in T are *unassigned* (reported as such,
+label :data:`~brokenness.measure.result.UNASSIGNED`). A set that passes but whose cells
+agree, within ``merge_threshold``, with the transform of a partition already found is not
+"off" relative to it (thickened walls, jitter): it is merged into that partition and not
+counted.
+
+We register the untransformed remainder of the map in each step, so the transform found is
+already the whole transform from the original map to the reference (the composition of the
+paper's per-step transforms), without resampling T again and again.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import MapError, ParameterError
+from ..grid import FREE, UNKNOWN, OccupancyMap
+from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
+from ..masking.distance import lookup_distance
+from ..registration.base import Registrar
+from ..registration.methods import make_registrar
+from ..transform import RigidTransform
+from .refine import refine_transform
+from .result import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition
+
+__all__ = ["compute_brokenness"]
+
+MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
+
+
+@dataclass(frozen=True)
+class _Found:
+    """A partition as the recursion finds it (before sorting by size)."""
+
+    transform: RigidTransform
+    members: NDArray[np.intp]  # indices into the map's occupied points
+    confidence: float
+    seconds: float
+
+
+def _as_map(value: MapLike, role: str) -> OccupancyMap:
+    if isinstance(value, OccupancyMap):
+        return value
+    if isinstance(value, str | os.PathLike):
+        from ..io import load_map
+
+        return load_map(value)
+    try:
+        return OccupancyMap.from_array(value)
+    except MapError as exc:
+        raise MapError(f"{role}: {exc}") from None
+
+
+def _withdraw(
+    states: NDArray[np.int8], withdrawn: NDArray[np.bool_], keep: NDArray[np.bool_]
+) -> NDArray[np.int8]:
+    """Cell states with ``withdrawn`` occupied cells, and the free cells nearer to them than
+    to any ``keep`` occupied cell, set to unknown."""
+    out = states.copy()
+    out[withdrawn] = UNKNOWN
+    if withdrawn.any():
+        nearer = manhattan_distance_map(withdrawn) < manhattan_distance_map(keep)
+        out[(states == FREE) & nearer] = UNKNOWN
+    return out
+
+
+def _check_options(
+    threshold: float,
+    min_partition_fraction: float,
+    min_partition_cells: int,
+    significance: float,
+    merge_threshold: float,
+    max_partitions: int,
+) -> None:
+    if not (math.isfinite(threshold) and threshold > 0):
+        raise ParameterError(f"threshold must be a positive number of cells, got {threshold!r}")
+    if not (0.0 <= min_partition_fraction < 1.0):
+        raise ParameterError(
+            f"min_partition_fraction must be in [0, 1), got {min_partition_fraction!r}"
+        )
+    if min_partition_cells < 1:
+        raise ParameterError(f"min_partition_cells must be >= 1, got {min_partition_cells!r}")
+    if not (math.isfinite(significance) and significance >= 0):
+        raise ParameterError(f"significance must be >= 0, got {significance!r}")
+    if not (math.isfinite(merge_threshold) and merge_threshold >= threshold):
+        raise ParameterError("merge_threshold must be at least threshold")
+    if max_partitions < 1:
+        raise ParameterError(f"max_partitions must be >= 1, got {max_partitions!r}")
+
+
+def compute_brokenness(
+    map: MapLike,  # noqa: A002 - the paper's name
+    reference: MapLike,
+    *,
+    method: str = "ifmi",
+    threshold: float = 2.0,
+    min_partition_fraction: float = 0.02,
+    min_partition_cells: int = 30,
+    significance: float = 6.0,
+    merge_threshold: float | None = None,
+    max_partitions: int = 16,
+    max_candidates: int = 4,
+    seed: int | None = None,
+    registration_options: dict[str, Any] | None = None,
+) -> BrokennessResult:
+    """Degree of brokenness of ``map`` with respect to ``reference`` (Birk 2010, Algorithm 1).
+
+    The map is split, greedily and largest first, into partitions that each agree with the
+    reference under their own rigid transform; the degree is the number of partitions minus
+    one. Each step registers what is left of the map with the reference, masks out the cells
+    that then agree with it (Manhattan distance to an occupied reference cell at most
+    ``threshold``), and repeats until nothing significant is left (see the module docstring
+    for the stopping rule).
+
+    Parameters
+    ----------
+    map : OccupancyMap, array_like or path
+        The map under test. Arrays go through :meth:`OccupancyMap.from_array`, paths through
+        :func:`brokenness.load_map`.
+    reference : OccupancyMap, array_like or path
+        The reference (ground truth). If both maps know their resolution and the two differ,
+        the map is resampled to the reference's resolution first.
+    method : {"ifmi", "random-walk"}
+        Registration used in each step: the deterministic improved Fourier-Mellin method of the
+        paper, or the stochastic map-merging baseline (Birk & Carpin 2006).
+    threshold : float
+        ``c`` of Psi_2, in reference cells: a moved map cell agrees with the reference when
+        the Manhattan distance to the nearest occupied reference cell is at most ``c``.
+        Default 2 (e.g. 10 cm at 5 cm per cell), enough for wall thickness and jitter.
+    min_partition_fraction : float
+        Smallest partition, as a share of the map's occupied cells (default 2 %).
+    min_partition_cells : int
+        Smallest partition, in cells (default 30).
+    significance : float
+        ``z`` of the chance test of the stopping rule (default 6).
+    merge_threshold : float, optional
+        Loose agreement used to merge a new set into an earlier partition (default
+        ``2 * threshold``): if at least half of the new set agrees within this distance under
+        an earlier partition's transform, it belongs to that partition.
+    max_partitions : int
+        Upper bound on the number of partitions (default 16): the recursion always ends.
+    max_candidates : int
+        Registration hypotheses examined per step (default 4).
+    seed : int, optional
+        Seed of the random-walk registration (iFMI uses no randomness).
+    registration_options : dict, optional
+        Keyword options of the registration method (see :func:`brokenness.register`).
+
+    Returns
+    -------
+    BrokennessResult
+        ``degree``, ``partitions`` (largest first, each with the whole transform from the
+        original map to the reference), ``labels`` image, unassigned cells, timings.
+
+    Raises
+    ------
+    MapError
+        If either map has no occupied cell or cannot be read.
+    ParameterError
+        For options out of range.
+
+    References
+    ----------
+    .. [1] A. Birk, "Using Recursive Spectral Registrations to Determine Brokenness as
+       Measure of Structural Map Errors", ICRA 2010.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from brokenness import compute_brokenness
+    >>> room = np.zeros((120, 160), bool)
+    >>> room[20, 20:140] = room[100, 20:140] = room[20:101, 20] = room[20:101, 140] = True
+    >>> room[20:60, 80] = room[60, 50:80] = True
+    >>> compute_brokenness(room, room).degree
+    0
+    """
+    started = time.perf_counter()
+    if merge_threshold is None:
+        merge_threshold = 2.0 * threshold
+    _check_options(
+        threshold,
+        min_partition_fraction,
+        min_partition_cells,
+        significance,
+        merge_threshold,
+        max_partitions,
+    )
+    original = _as_map(map, "map")
+    ref = _as_map(reference, "reference")
+    if original.n_occupied == 0:
+        raise MapError("the map has no occupied cell: nothing to measure")
+    index = ReferenceIndex.build(ref)  # raises for an empty reference
+
+    working, to_working = _common_resolution(original, ref)
+    registrar = make_registrar(method, seed=seed, **(registration_options or {}))
+
+    points = cell_points(working.occupied)  # (N, 2), row-major order
+    n_total = points.shape[0]
+    found = _recurse(
+        working,
+        points,
+        index,
+        registrar,
+        threshold=threshold,
+        min_cells=max(min_partition_cells, math.ceil(min_partition_fraction * n_total)),
+        significance=significance,
+        merge_threshold=merge_threshold,
+        max_partitions=max_partitions,
+        max_candidates=max_candidates,
+    )
+    partitions, labels_working = _assemble(found, points, working, to_working, original, ref, index)
+    labels = _labels_in_original_grid(labels_working, working, to_working, original)
+    n_occupied = original.n_occupied
+    assigned = int(np.count_nonzero(labels >= 0))
+    # Partition sizes and fractions are counted in the original map's cells.
+    partitions = tuple(
+        Partition(
+            index=p.index,
+            cells=int(np.count_nonzero(labels == p.index)),
+            fraction=float(np.count_nonzero(labels == p.index)) / n_occupied,
+            transform=p.transform,
+            confidence=p.confidence,
+            rotation_offset_deg=p.rotation_offset_deg,
+            displacement=p.displacement,
+            displacement_m=p.displacement_m,
+            step_seconds=p.step_seconds,
+        )
+        for p in partitions
+    )
+    parameters = {
+        "threshold": threshold,
+        "min_partition_fraction": min_partition_fraction,
+        "min_partition_cells": min_partition_cells,
+        "significance": significance,
+        "merge_threshold": merge_threshold,
+        "max_partitions": max_partitions,
+        "max_candidates": max_candidates,
+        "seed": seed,
+        "registration_options": dict(registration_options or {}),
+        "working_resolution": working.resolution,
+    }
+    return BrokennessResult(
+        degree=max(len(partitions) - 1, 0),
+        partitions=partitions,
+        labels=labels,
+        occupied_cells=n_occupied,
+        unassigned_cells=n_occupied - assigned,
+        method=method,
+        parameters=parameters,
+        seconds=time.perf_counter() - started,
+    )
+
+
+def _common_resolution(m: OccupancyMap, ref: OccupancyMap) -> tuple[OccupancyMap, RigidTransform]:
+    """The map at the reference's resolution, and the transform original -> working cells."""
+    if (
+        m.resolution is None
+        or ref.resolution is None
+        or math.isclose(m.resolution, ref.resolution, rel_tol=1e-9)
+    ):
+        return m, RigidTransform.identity()
+    from ..io.resample import resample_to_resolution
+
+    s = m.resolution / ref.resolution
+    return resample_to_resolution(m, ref.resolution), RigidTransform(
+        0.0, 0.5 * s - 0.5, 0.5 * s - 0.5, s
+    )
+
+
+def _recurse(
+    working: OccupancyMap,
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    registrar: Registrar,
+    *,
+    threshold: float,
+    min_cells: int,
+    significance: float,
+    merge_threshold: float,
+    max_partitions: int,
+    max_candidates: int,
+) -> list[_Found]:
+    """Algorithm 1: the partitions in the order found (members index ``points``)."""
+    n_total = points.shape[0]
+    remaining = np.ones(n_total, dtype=bool)
+    reference_occupied = index.reference.occupied
+    p0 = index.chance_agreement(threshold)
+    uses_free = bool(getattr(registrar, "uses_free_space", True))
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    found: list[_Found] = []
+    steps = 0
+    while np.count_nonzero(remaining) >= min_cells and len(found) < max_partitions:
+        steps += 1
+        if steps > 2 * max_partitions:  # merges do not count; bound them too
+            break
+        t0 = time.perf_counter()
+        moving_states = _remainder_states(working, rows, cols, remaining, uses_free)
+        reference_states = _reference_states(index.reference, reference_occupied, uses_free)
+        prepared = registrar.prepare_reference(reference_states)
+        candidates = registrar.candidates(prepared, moving_states, max_candidates)
+        left = np.flatnonzero(remaining)
+        best = _best_candidate(candidates, points[left], index, threshold)
+        if best is None:
+            break
+        transform, agree, _confidence = best
+        k, n = int(np.count_nonzero(agree)), left.size
+        chance = n * p0
+        if k < min_cells or k < chance + significance * math.sqrt(chance * (1.0 - p0)):
+            break
+        members = left[agree]
+        moved = transform.apply(points[members])
+        # Merge into an earlier partition whose transform explains this set as well.
+        target = _merge_target(found, points[members], index, merge_threshold)
+        remaining[members] = False
+        reference_occupied = unmatched_reference(reference_occupied, moved, threshold)
+        elapsed = time.perf_counter() - t0
+        excess = (k - chance) / k
+        if target is not None:
+            f = found[target]
+            found[target] = _Found(
+                f.transform, np.concatenate([f.members, members]), f.confidence, f.seconds + elapsed
+            )
+        else:
+            found.append(_Found(transform, members, float(excess), elapsed))
+        if not reference_occupied.any():
+            break
+    return found
+
+
+def _remainder_states(
+    working: OccupancyMap,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    uses_free: bool,
+) -> NDArray[np.int8]:
+    """The map T of the recursion: masked occupied cells (and their free space) withdrawn."""
+    withdrawn = np.zeros(working.shape, dtype=bool)
+    withdrawn[rows[~remaining], cols[~remaining]] = True
+    if not uses_free:
+        out = working.states.copy()
+        out[withdrawn] = UNKNOWN
+        return out
+    return _withdraw(working.states, withdrawn, working.occupied & ~withdrawn)
+
+
+def _reference_states(
+    reference: OccupancyMap, available: NDArray[np.bool_], uses_free: bool
+) -> NDArray[np.int8]:
+    """The reference with the cells matched by earlier partitions withdrawn."""
+    withdrawn = reference.occupied & ~available
+    if not uses_free:
+        out = reference.states.copy()
+        out[withdrawn] = UNKNOWN
+        return out
+    return _withdraw(reference.states, withdrawn, available)
+
+
+def _best_candidate(
+    candidates: list[Any],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> tuple[RigidTransform, NDArray[np.bool_], float] | None:
+    """Refine each candidate and keep the one under which the most remaining cells agree."""
+    best: tuple[RigidTransform, NDArray[np.bool_], float] | None = None
+    best_k = -1
+    for cand in candidates:
+        t = cand.transform
+        if t.scale != 1.0:
+            continue
+        refined = refine_transform(
+            t, points, index.tree, gate=3.0 * threshold + 2.0, final_gate=threshold + 0.5
+        )
+        for option in (refined, t):
+            agree = index.occupied_agreement(option.apply(points), threshold)
+            k = int(np.count_nonzero(agree))
+            if k > best_k:
+                best, best_k = (option, agree, float(cand.confidence)), k
+    return best
+
+
+def _merge_target(
+    found: list[_Found], pts: NDArray[np.float64], index: ReferenceIndex, merge_threshold: float
+) -> int | None:
+    """Index of the earlier partition whose transform loosely explains ``pts``, if any."""
+    best, best_share = None, 0.5
+    for i, f in enumerate(found):
+        d = lookup_distance(index.occupied_distance, f.transform.apply(pts))
+        share = float(np.count_nonzero(d <= merge_threshold)) / max(pts.shape[0], 1)
+        if share >= best_share:
+            best, best_share = i, share
+    return best
+
+
+def _assemble(
+    found: list[_Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    to_working: RigidTransform,
+    original: OccupancyMap,
+    ref: OccupancyMap,
+    index: ReferenceIndex,
+) -> tuple[list[Partition], NDArray[np.int16]]:
+    """Sort partitions by size, relate them to the largest, and draw the label image."""
+    order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
+    labels = np.full(working.shape, NOT_OCCUPIED, dtype=np.int16)
+    labels[working.occupied] = UNASSIGNED
+    partitions: list[Partition] = []
+    if not found:
+        return partitions, labels
+    largest = found[order[0]].transform
+    for new_index, i in enumerate(order):
+        f = found[i]
+        pts = points[f.members]
+        labels[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)] = new_index
+        offset = math.degrees(math.remainder(f.transform.rotation - largest.rotation, 2 * math.pi))
+        displacement = float(f.transform.displacement(largest, pts).mean()) if new_index else 0.0
+        whole = f.transform.compose(to_working).with_world(original, ref)
+        partitions.append(
+            Partition(
+                index=new_index,
+                cells=int(f.members.size),
+                fraction=0.0,  # filled in by the caller, in original cells
+                transform=whole,
+                confidence=f.confidence,
+                rotation_offset_deg=0.0 if new_index == 0 else offset,
+                displacement=displacement,
+                displacement_m=None if ref.resolution is None else displacement * ref.resolution,
+                step_seconds=f.seconds,
+            )
+        )
+    return partitions, labels
+
+
+def _labels_in_original_grid(
+    labels: NDArray[np.int16],
+    working: OccupancyMap,
+    to_working: RigidTransform,
+    original: OccupancyMap,
+) -> NDArray[np.int16]:
+    """Carry the working-grid labels back to the original map's grid (nearest cell)."""
+    if working is original:
+        return labels
+    out = np.full(original.shape, NOT_OCCUPIED, dtype=np.int16)
+    occ = original.occupied
+    pts = to_working.apply(cell_points(occ))
+    h, w = labels.shape
+    c = np.clip(np.rint(pts[:, 0]).astype(np.intp), 0, w - 1)
+    r = np.clip(np.rint(pts[:, 1]).astype(np.intp), 0, h - 1)
+    lab = labels[r, c]
+    out[occ] = np.where(lab >= 0, lab, UNASSIGNED)
+    return out
