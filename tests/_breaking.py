@@ -1,0 +1,77 @@
+"""Break a real map on purpose: move regions of it by known rigid transforms.
+
+Used by the end-to-end tests until (and beside) the simulator: the ground truth of each
+partition is exact, because we made the motion ourselves.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from brokenness import OccupancyMap, RigidTransform
+from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+
+
+def move_about(center: tuple[float, float], degrees: float, shift: tuple[float, float]) -> RigidTransform:
+    """Rotation by ``degrees`` about ``center`` (x, y), then a shift: ref cells -> map cells."""
+    rot = RigidTransform(np.radians(degrees))
+    c = np.asarray(center, float)
+    t = c - rot.apply(c[None])[0] + np.asarray(shift, float)
+    return RigidTransform(np.radians(degrees), t[0], t[1])
+
+
+def break_map(
+    reference: OccupancyMap,
+    regions: Sequence[np.ndarray],
+    motions: Sequence[RigidTransform],
+) -> tuple[OccupancyMap, list[RigidTransform]]:
+    """Move each region of ``reference`` by its motion and composite the pieces.
+
+    Parameters
+    ----------
+    reference : OccupancyMap
+    regions : sequence of bool arrays
+        Disjoint masks over the reference grid.
+    motions : sequence of RigidTransform
+        Reference cells -> broken-map cells, one per region.
+
+    Returns
+    -------
+    broken : OccupancyMap
+        Same shape and geometry as the reference.
+    truth : list of RigidTransform
+        Per region, the transform from broken-map cells back to reference cells (the
+        convention of ``compute_brokenness``).
+    """
+    h, w = reference.shape
+    occupied = np.zeros((h, w), bool)
+    free = np.zeros((h, w), bool)
+    for region, motion in zip(regions, motions, strict=True):
+        src = np.where(region, reference.states + 1, 0).astype(np.uint8)  # 0 outside, 1..3 inside
+        moved = cv2.warpAffine(src, motion.matrix[:2], (w, h), flags=cv2.INTER_NEAREST, borderValue=0)
+        occupied |= moved == OCCUPIED + 1
+        free |= moved == FREE + 1
+    states = np.full((h, w), UNKNOWN, np.int8)
+    states[free] = FREE
+    states[occupied] = OCCUPIED
+    broken = OccupancyMap(states, reference.resolution, reference.origin, source="broken")
+    return broken, [m.inverse() for m in motions]
+
+
+def strips(shape: tuple[int, int], cuts: Sequence[float], axis: int = 1) -> list[np.ndarray]:
+    """Split a grid into strips at the given fractions of its width (axis=1) or height (0)."""
+    h, w = shape
+    n = w if axis == 1 else h
+    edges = [0, *[int(round(c * n)) for c in cuts], n]
+    out = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        m = np.zeros(shape, bool)
+        if axis == 1:
+            m[:, a:b] = True
+        else:
+            m[a:b, :] = True
+        out.append(m)
+    return out

@@ -1,0 +1,92 @@
+"""Psi (picture distance), distance maps and the local agreement Psi_2."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage as ndi
+
+from brokenness import MapError, OccupancyMap, picture_distance
+from brokenness.masking import (
+    ReferenceIndex,
+    cell_points,
+    lookup_distance,
+    manhattan_distance_map,
+    unmatched_reference,
+)
+
+
+def _room(shape=(60, 80)) -> np.ndarray:
+    a = np.zeros(shape, bool)
+    a[10, 10:70] = a[50, 10:70] = a[10:51, 10] = a[10:51, 70] = True
+    a[10:35, 40] = True
+    return a
+
+
+def test_manhattan_distance_is_exact():
+    rng = np.random.default_rng(1)
+    mask = rng.random((40, 50)) < 0.03
+    expected = ndi.distance_transform_cdt(~mask, metric="taxicab")
+    np.testing.assert_array_equal(manhattan_distance_map(mask), expected)
+    assert np.isinf(manhattan_distance_map(np.zeros((3, 3), bool))).all()
+
+
+def test_lookup_distance_rounds_and_is_inf_outside():
+    d = manhattan_distance_map(np.eye(5, dtype=bool))
+    out = lookup_distance(d, [[0.4, 0.4], [2.0, 0.0], [-1.0, 0.0], [4.6, 0.0]])
+    assert out[0] == 0 and out[1] == 2 and np.isinf(out[2]) and np.isinf(out[3])
+
+
+def test_picture_distance_zero_on_itself_and_grows_with_shift():
+    room = OccupancyMap.from_array(_room())
+    assert picture_distance(room, room) == 0.0
+    shifted = [OccupancyMap.from_array(np.roll(_room(), k, axis=1)) for k in (1, 2, 4)]
+    values = [picture_distance(room, s) for s in shifted]
+    assert 0 < values[0] < values[1] < values[2]
+    assert picture_distance(room, shifted[0]) == pytest.approx(picture_distance(shifted[0], room))
+
+
+def test_picture_distance_matches_brute_force():
+    rng = np.random.default_rng(7)
+    a = OccupancyMap(rng.choice(np.array([-1, 0, 1], np.int8), size=(12, 9)))
+    b = OccupancyMap(rng.choice(np.array([-1, 0, 1], np.int8), size=(12, 9)))
+
+    def d(x, y, kind):
+        px = np.argwhere(x.states == kind)
+        py = np.argwhere(y.states == kind)
+        if len(px) == 0:
+            return 0.0
+        dist = np.abs(px[:, None, :] - py[None, :, :]).sum(-1).min(1)
+        return dist.mean()
+
+    brute = sum(d(a, b, k) + d(b, a, k) for k in (1, 0))
+    assert picture_distance(a, b) == pytest.approx(brute)
+
+
+def test_picture_distance_shape_mismatch():
+    with pytest.raises(MapError):
+        picture_distance(OccupancyMap.from_array(_room()), OccupancyMap.from_array(_room((61, 80))))
+
+
+def test_reference_index_agreement_and_chance():
+    ref = OccupancyMap.from_array(_room())
+    index = ReferenceIndex.build(ref)
+    pts = cell_points(ref.occupied)
+    assert index.occupied_agreement(pts, 2).all()
+    top = (pts[:, 1] == 10) & (pts[:, 0] > 13) & (pts[:, 0] < 37)
+    assert not index.occupied_agreement(pts + [0, 3], 2)[top].any()
+    p0 = index.chance_agreement(2)
+    near = (manhattan_distance_map(ref.occupied) <= 2).mean()
+    assert p0 == pytest.approx(near)
+    with pytest.raises(MapError):
+        ReferenceIndex.build(OccupancyMap(np.zeros((4, 4), np.int8)))
+
+
+def test_unmatched_reference_removes_the_manhattan_neighbourhood():
+    ref = np.zeros((20, 20), bool)
+    ref[10, :] = True
+    out = unmatched_reference(ref, [[10.0, 8.0]], 2)
+    removed = ref & ~out
+    # (10, 10) is at distance 2 of (x=10, y=8): removed; (11, 10) at 3: kept
+    assert removed[10, 10] and not removed[10, 11] and not removed[10, 9]
+    assert np.array_equal(unmatched_reference(ref, np.empty((0, 2)), 2), ref)
