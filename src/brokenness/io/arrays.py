@@ -1,0 +1,89 @@
+"""numpy ``.npy`` maps: reading (no pickles) and writing ``nav_msgs/OccupancyGrid`` values."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import MapError, MapFormatError, MapSizeError
+from ..grid import MAX_CELLS, OCCUPIED, UNKNOWN, OccupancyMap
+from ._files import one_line, read_file_bytes
+
+__all__ = ["decode_npy", "encode_npy"]
+
+
+def decode_npy(
+    path: Path,
+    *,
+    resolution: float | None = None,
+    origin: tuple[float, float, float] | None = None,
+) -> OccupancyMap:
+    """Load a 2D ``.npy`` array as a map.
+
+    Accepted contents:
+
+    * ``bool``: True occupied, False free;
+    * integers holding only -1, 0 and 1: the three states of :class:`OccupancyMap`
+      (1 is occupied). A ``nav_msgs/OccupancyGrid`` holding nothing but 1 % occupancy is
+      implausible, so this reading is unambiguous in practice;
+    * other integers: ``nav_msgs/OccupancyGrid`` values, -1 unknown and 0..100 percent,
+      thresholded by :meth:`OccupancyMap.from_array` (>= 65 occupied, <= 19 free);
+    * floats: occupancy probabilities in [0, 1] (NaN or inf is an error).
+
+    Raises
+    ------
+    MapFormatError
+        Not a valid ``.npy`` file, or an object/pickled array.
+    MapError
+        Not 2D, NaN values, values out of range.
+    MapSizeError
+        Larger than :data:`~brokenness.grid.MAX_CELLS` (checked from the header).
+    """
+    name = str(path)
+    data = read_file_bytes(path)
+    stream = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(stream)
+        if version == (1, 0):
+            shape, _, _ = np.lib.format.read_array_header_1_0(stream)
+        else:
+            shape, _, _ = np.lib.format.read_array_header_2_0(stream)
+    except Exception as exc:  # numpy raises ValueError or others on a bad header
+        raise MapFormatError(f"{name}: not a valid .npy file ({one_line(exc)})") from None
+    if len(shape) == 2 and shape[0] * shape[1] > MAX_CELLS:
+        raise MapSizeError(
+            f"{name}: array of {shape[1]}x{shape[0]} is larger than the limit of {MAX_CELLS} cells"
+        )
+    try:
+        arr = np.load(io.BytesIO(data), allow_pickle=False)
+    except ValueError as exc:
+        raise MapFormatError(f"{name}: unreadable .npy array ({one_line(exc)})") from None
+    except (OSError, EOFError) as exc:
+        raise MapFormatError(f"{name}: corrupt or truncated .npy file ({one_line(exc)})") from None
+    if not isinstance(arr, np.ndarray):
+        raise MapFormatError(f"{name}: not a single numpy array")
+    try:
+        if arr.ndim != 2:
+            raise MapError(f"a map must be a 2D array, got shape {arr.shape}")
+        if np.issubdtype(arr.dtype, np.integer) and arr.size:
+            low, high = int(arr.min()), int(arr.max())
+            if low >= -1 and high <= 1:
+                return OccupancyMap(
+                    arr.astype(np.int8), resolution=resolution, origin=origin, source=name
+                )
+        return OccupancyMap.from_array(arr, resolution=resolution, origin=origin, source=name)
+    except MapError as exc:
+        raise type(exc)(f"{name}: {exc}") from None
+
+
+def encode_npy(states: NDArray[np.int8]) -> bytes:
+    """``.npy`` bytes of ``nav_msgs/OccupancyGrid`` values: -1 unknown, 0 free, 100 occupied."""
+    nav = np.zeros(states.shape, dtype=np.int8)
+    nav[states == OCCUPIED] = 100
+    nav[states == UNKNOWN] = -1
+    buf = io.BytesIO()
+    np.save(buf, nav, allow_pickle=False)
+    return buf.getvalue()
