@@ -10,7 +10,13 @@ from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ._files import require_file
 from .arrays import decode_npy
-from .pixels import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, MODES, pixels_to_states, read_pixels
+from .pixels import (
+    DEFAULT_FREE_THRESH,
+    DEFAULT_OCCUPIED_THRESH,
+    MODES,
+    pixels_to_states,
+    read_pixels,
+)
 from .ros_yaml import is_rosbag2_metadata, load_yaml_document, parse_map_yaml
 
 __all__ = ["BAG_SUFFIXES", "IMAGE_SUFFIXES", "YAML_SUFFIXES", "is_rosbag", "load_map"]
@@ -21,8 +27,21 @@ YAML_SUFFIXES: frozenset[str] = frozenset({".yaml", ".yml"})
 BAG_SUFFIXES: frozenset[str] = frozenset({".bag", ".db3", ".mcap"})
 #: Raster image suffixes (PGM by our reader, the rest by Pillow).
 IMAGE_SUFFIXES: frozenset[str] = frozenset(
-    {".pgm", ".pnm", ".ppm", ".pbm", ".png", ".bmp", ".tif", ".tiff", ".gif", ".jpg", ".jpeg",
-     ".webp", ".tga"}
+    {
+        ".pgm",
+        ".pnm",
+        ".ppm",
+        ".pbm",
+        ".png",
+        ".bmp",
+        ".tif",
+        ".tiff",
+        ".gif",
+        ".jpg",
+        ".jpeg",
+        ".webp",
+        ".tga",
+    }
 )
 
 PathLike = str | os.PathLike[str]

@@ -13,6 +13,7 @@ References
 from __future__ import annotations
 
 import re
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -142,4 +143,3 @@ def encode_pgm(pixels: NDArray[np.uint8], *, comment: str | None = None) -> byte
         head += b"# " + " ".join(comment.split()).encode("utf-8", "replace") + b"\n"
     head += f"{width} {height}\n255\n".encode("ascii")
     return head + np.ascontiguousarray(pixels, dtype=np.uint8).tobytes()
-
