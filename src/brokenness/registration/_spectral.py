@@ -1,0 +1,143 @@
+"""Array kernels of the iFMI registration: images from cell states, spectra, peaks.
+
+Pure functions on arrays; :mod:`brokenness.registration.ifmi` strings them together. All
+images are float32, all spectra complex64 (half the memory of float64 and fast enough:
+the peaks are refined to sub-bin precision and a final full-resolution refinement follows).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import scipy.fft
+from numpy.typing import NDArray
+
+__all__ = [
+    "bounding_box",
+    "circular_peaks",
+    "coarse_indicator",
+    "hann_window",
+    "log_polar_signature",
+    "parabolic_offset",
+    "polar_grid",
+    "whiten",
+]
+
+F32 = NDArray[np.float32]
+
+
+def bounding_box(mask: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
+    """``(row0, row1, col0, col1)`` (half-open) of the True cells, or None if there are none."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(mask.any(axis=0))
+    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+
+def coarse_indicator(occupied: NDArray[np.bool_], factor: int) -> F32:
+    """Occupied indicator (1.0 / 0.0), max-pooled by ``factor`` so that thin walls survive.
+
+    Coarse cell ``(X, Y)`` covers the fine cells ``factor*X .. factor*X + factor - 1`` (the
+    array is zero-padded up to a multiple of ``factor``), so its centre is the fine point
+    ``factor*X + (factor - 1)/2``.
+    """
+    if factor <= 1:
+        return occupied.astype(np.float32)
+    img = occupied.view(np.uint8) if occupied.dtype == np.bool_ else occupied.astype(np.uint8)
+    rows, cols = img.shape
+    pr, pc = -rows % factor, -cols % factor
+    if pr or pc:
+        img = np.pad(img, ((0, pr), (0, pc)))
+    r, c = img.shape
+    # two one-axis reductions over contiguous blocks (much faster than one over two axes)
+    img = img.reshape(r // factor, factor, c).max(axis=1)
+    img = img.reshape(r // factor, c // factor, factor).max(axis=2)
+    return img.astype(np.float32)
+
+
+def hann_window(shape: tuple[int, int]) -> F32:
+    """Separable 2D Hann window (positive everywhere, so no row or column is lost)."""
+    rows, cols = shape
+    wr = np.hanning(rows + 2)[1:-1].astype(np.float32)
+    wc = np.hanning(cols + 2)[1:-1].astype(np.float32)
+    return np.outer(wr, wc)
+
+
+def polar_grid(
+    size: int, n_angles: int, band: tuple[float, float], n_radii: int
+) -> tuple[F32, F32]:
+    """``cv2.remap`` maps that sample a half-plane (``rfft2``) spectrum on a polar grid.
+
+    The spectrum is ``fftshift(rfft2(image, s=(size, size)), axes=0)``: column ``j`` holds
+    the horizontal frequency ``j/size`` and row ``i`` the vertical one ``(i - size//2)/size``
+    (cycles per cell). Output row ``k`` is the radius ``band`` (fractions of Nyquist = 0.5
+    cycles/cell) linearly interpolated; output column ``a`` is the direction
+    ``phi = -pi/2 + a*pi/n_angles`` of ``(fx, fy) = (x, y)`` frequency: the magnitude of a
+    real image is point-symmetric, so half a turn covers every direction.
+    """
+    low, high = band
+    radii = np.linspace(low * 0.5, high * 0.5, n_radii) * size
+    phi = -0.5 * math.pi + np.arange(n_angles) * (math.pi / n_angles)
+    map_x = (radii[:, None] * np.cos(phi)[None, :]).astype(np.float32)
+    map_y = (radii[:, None] * np.sin(phi)[None, :] + size // 2).astype(np.float32)
+    return map_x, map_y
+
+
+def log_polar_signature(
+    image: F32, window: F32, size: int, grid: tuple[F32, F32], workers: int | None
+) -> NDArray[np.complex64]:
+    """Angular spectrum of ``rfft2`` of the polar, band-filtered log magnitude.
+
+    The image is windowed, zero-padded to ``size x size``, transformed; ``log1p`` of the
+    magnitude is sampled on ``grid`` (rows = radii of the band, columns = angles); each
+    radius row is made zero-mean and unit-variance (so that every radius of the band weighs
+    the same and the isotropic part, which carries no angle, drops out), and transformed
+    along the angle axis. Returns shape ``(n_radii, n_angles//2 + 1)``.
+    """
+    spec = scipy.fft.rfft2(image * window, s=(size, size), workers=workers)
+    mag = np.log1p(np.abs(spec)).astype(np.float32)
+    mag = np.fft.fftshift(mag, axes=0)
+    polar = cv2.remap(mag, grid[0], grid[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    polar = polar - polar.mean(axis=1, keepdims=True)
+    polar /= polar.std(axis=1, keepdims=True) + np.float32(1e-6)
+    return scipy.fft.rfft(polar, axis=1, workers=workers).astype(np.complex64)
+
+
+def whiten(spectrum: NDArray[np.complex64]) -> NDArray[np.complex64]:
+    """Phase-only spectrum ``F / |F|`` (zero where ``|F|`` is negligible)."""
+    mag = np.abs(spectrum)
+    eps = np.float32(1e-6) * (float(mag.max()) if mag.size else 1.0) + np.float32(1e-30)
+    out = spectrum / np.maximum(mag, eps)
+    return out.astype(np.complex64, copy=False)
+
+
+def parabolic_offset(left: float, centre: float, right: float) -> float:
+    """Sub-bin position of a peak in (-0.5, 0.5) from three samples around it."""
+    denom = left - 2.0 * centre + right
+    if denom >= 0.0 or not math.isfinite(denom):
+        return 0.0
+    off = 0.5 * (left - right) / denom
+    return float(min(0.5, max(-0.5, off)))
+
+
+def circular_peaks(signal: NDArray[np.floating], count: int, min_separation: int) -> list[int]:
+    """Indices of the ``count`` highest local maxima of a circular 1D signal.
+
+    Peaks closer than ``min_separation`` bins (circularly) to a higher one are skipped.
+    Ties are broken by the lower index, so the result is deterministic.
+    """
+    s = np.asarray(signal, dtype=np.float64)
+    n = s.size
+    is_max = (s >= np.roll(s, 1)) & (s >= np.roll(s, -1))
+    idx = np.flatnonzero(is_max)
+    order = idx[np.lexsort((idx, -s[idx]))]
+    chosen: list[int] = []
+    for i in order:
+        if all(min(abs(int(i) - j), n - abs(int(i) - j)) >= min_separation for j in chosen):
+            chosen.append(int(i))
+            if len(chosen) == count:
+                break
+    return chosen
