@@ -235,6 +235,6 @@ def pixels_to_states(
                     f"because free_thresh={free_thresh} > 50/255 (0.19608); following the YAML "
                     "as map_server does - set free_thresh: 0.196 if they mean unknown",
                     MapWarning,
-                    stacklevel=4,
+                    stacklevel=3,
                 )
     return states

@@ -39,7 +39,7 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
         pos = _SKIP.match(data, pos).end()  # type: ignore[union-attr]
         match = _NUMBER.match(data, pos)
         if match is None:
-            if pos >= len(data):
+            if pos >= len(data) or data[pos : pos + 1] == b"#":
                 raise MapFormatError(f"{name}: truncated PGM header (no {field})")
             raise MapFormatError(f"{name}: invalid PGM header (bad {field})")
         values.append(int(match.group()))
