@@ -1,0 +1,145 @@
+"""``brokenness.register``: align one map with a reference."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..errors import MapError, ParameterError
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from ..transform import RigidTransform
+from .base import Candidate, Registration
+from .methods import make_registrar
+
+__all__ = ["as_map", "register"]
+
+
+def as_map(value: OccupancyMap | ArrayLike, what: str = "map") -> OccupancyMap:
+    """An :class:`OccupancyMap` from a map or a 2D array.
+
+    ``bool`` arrays are occupied (True) / free (False); integer arrays whose values are all
+    in {-1, 0, 1} are cell states (unknown / free / occupied, as
+    :attr:`OccupancyMap.states`); other integer arrays and float arrays are read as
+    ``nav_msgs/OccupancyGrid`` occupancy values by :meth:`OccupancyMap.from_array`.
+
+    Raises
+    ------
+    MapError
+        If the array is not a valid map.
+    """
+    if isinstance(value, OccupancyMap):
+        return value
+    arr = np.asarray(value)
+    if arr.ndim != 2:
+        raise MapError(f"the {what} must be a 2D grid, got an array of shape {arr.shape}")
+    if np.issubdtype(arr.dtype, np.integer) and arr.size:
+        values = np.isin(arr, (UNKNOWN, FREE, OCCUPIED))
+        if values.all():
+            return OccupancyMap(arr.astype(np.int8))
+    return OccupancyMap.from_array(arr)
+
+
+def register(
+    reference: OccupancyMap | ArrayLike,
+    moving: OccupancyMap | ArrayLike,
+    *,
+    method: str = "ifmi",
+    seed: int | None = None,
+    max_candidates: int = 4,
+    **options: Any,
+) -> Registration:
+    """Find the rigid transform that maps the cells of ``moving`` onto ``reference``.
+
+    Parameters
+    ----------
+    reference, moving : OccupancyMap or array_like
+        The two maps (arrays as in :func:`as_map`). Their shapes may differ, and ``moving``
+        may show only a part of the reference. When both have a resolution and the two
+        differ, ``moving`` is resampled to the reference's resolution before registering.
+    method : {"ifmi", "random-walk"}
+        Registration method, see :func:`brokenness.registration.make_registrar`.
+    seed : int, optional
+        Seed of the stochastic method (iFMI is deterministic and ignores it).
+    max_candidates : int, default 4
+        Number of ranked hypotheses kept in :attr:`Registration.candidates`.
+    **options
+        Options of the method, e.g. ``n_angles`` or ``max_size`` of
+        :class:`~brokenness.registration.IFMIRegistrar`.
+
+    Returns
+    -------
+    Registration
+        ``.transform`` maps cells ``(x, y) = (column, row)`` of the *original* ``moving``
+        onto reference cells (with ``scale`` = moving resolution / reference resolution
+        when they differ) and carries the world-frame transform when both maps have a
+        resolution and an origin; ``.confidence`` in [0, 1].
+
+    Raises
+    ------
+    MapError
+        If a map is not 2D or has no occupied cell.
+    ParameterError
+        For an unknown method or invalid options.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.zeros((120, 160), dtype=bool)
+    >>> ref[20, 10:150] = ref[100, 10:150] = ref[20:101, 10] = ref[20:60, 150] = True
+    >>> ref[60, 110:151] = True
+    >>> moving = np.roll(ref, (7, -5), axis=(0, 1))
+    >>> reg = register(ref, moving)
+    >>> [round(v) for v in reg.transform.translation], round(reg.rotation_deg)
+    ([5, -7], 0)
+    """
+    ref_map = as_map(reference, "reference")
+    mov_map = as_map(moving, "moving map")
+    if ref_map.n_occupied == 0:
+        raise MapError("the reference has no occupied cell, there is nothing to register to")
+    if mov_map.n_occupied == 0:
+        raise MapError("the moving map has no occupied cell, there is nothing to register")
+    if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)):
+        raise ParameterError(f"max_candidates must be a positive integer, got {max_candidates!r}")
+    if max_candidates < 1:
+        raise ParameterError(f"max_candidates must be a positive integer, got {max_candidates!r}")
+    start = time.perf_counter()
+    work = mov_map
+    # original moving cells -> cells of the map that is registered (identity unless resampled)
+    to_work = RigidTransform.identity()
+    if (
+        ref_map.resolution is not None
+        and mov_map.resolution is not None
+        and not np.isclose(ref_map.resolution, mov_map.resolution, rtol=1e-9, atol=0.0)
+    ):
+        from ..io.resample import resample_to_resolution
+
+        work = resample_to_resolution(mov_map, ref_map.resolution)
+        s = mov_map.resolution / ref_map.resolution
+        # the centre of column x lands on (x + 0.5) * s - 0.5 of the resampled grid; rows
+        # are anchored at the bottom (the origin is the lower-left corner), which adds
+        # rows' - rows * s to y (see brokenness.io.resample)
+        shift_y = work.shape[0] - mov_map.shape[0] * s
+        to_work = RigidTransform(0.0, 0.5 * s - 0.5, 0.5 * s - 0.5 + shift_y, s)
+        if work.n_occupied == 0:
+            raise MapError("the moving map has no occupied cell left at the reference's resolution")
+    registrar = make_registrar(method, seed=seed, **options)
+    prepared = registrar.prepare_reference(ref_map.states)
+    found = registrar.candidates(prepared, work.states, int(max_candidates))
+    if not found:  # pragma: no cover - the protocol promises at least one
+        raise MapError(f"registration method {method!r} returned no hypothesis")
+    candidates = tuple(
+        Candidate(c.transform.compose(to_work).with_world(mov_map, ref_map), c.confidence)
+        for c in found
+    )
+    seconds = time.perf_counter() - start
+    best = candidates[0]
+    return Registration(
+        transform=best.transform,
+        confidence=best.confidence,
+        candidates=candidates,
+        method=registrar.name,
+        seconds=seconds,
+    )
