@@ -209,6 +209,12 @@ def test_p5_and_p2_8bit_with_comments(tmp_path: Path) -> None:
     assert load_quiet(tmp_path / "b.pgm").states.tolist() == expected
 
 
+def test_p2_comments_in_body_and_trailing_data(tmp_path: Path) -> None:
+    body = b"P2 3 2 255\n0 # wall\n205 254\n# second row\n254 0 205\nP2 next image 7\n"
+    (tmp_path / "a.pgm").write_bytes(body)
+    assert load_quiet(tmp_path / "a.pgm").states.tolist() == [[O, U, F], [F, O, U]]
+
+
 @pytest.mark.parametrize("writer", [p5, p2])
 @pytest.mark.parametrize("maxval", [65535, 1000])
 def test_16bit_pgm(tmp_path: Path, writer, maxval: int) -> None:

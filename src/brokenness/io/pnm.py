@@ -59,6 +59,19 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
     return width, height, maxval, pos + 1
 
 
+def _parse_plain(body: bytes, count: int, name: str) -> NDArray[np.int64]:
+    """Decimal samples of a plain PGM body (comments removed): numpy's C parser first."""
+    try:
+        return np.fromstring(body, dtype=np.int64, sep=" ")
+    except ValueError:
+        pass  # something after the samples, or a bad token: find out which, token by token
+    tokens = body.split(maxsplit=count)[:count]
+    try:
+        return np.array([int(t) for t in tokens], dtype=np.int64)
+    except (ValueError, OverflowError):
+        raise MapFormatError(f"{name}: invalid sample in plain PGM data") from None
+
+
 def decode_pgm(data: bytes, name: str) -> tuple[NDArray[np.unsignedinteger], int]:
     """Decode a PGM file held in memory.
 
@@ -104,16 +117,13 @@ def decode_pgm(data: bytes, name: str) -> tuple[NDArray[np.unsignedinteger], int
         body = data[pos:]
         if b"#" in body:
             body = _COMMENT.sub(b" ", body)
-        tokens = body.split(maxsplit=count)[:count]
-        if len(tokens) < count:
+        values = _parse_plain(body, count, name)
+        if len(values) < count:
             raise MapFormatError(
-                f"{name}: truncated PGM data ({len(tokens)} of {count} samples "
+                f"{name}: truncated PGM data ({len(values)} of {count} samples "
                 f"for {width}x{height} pixels)"
             )
-        try:
-            values = np.array(tokens).astype(np.int64)
-        except (ValueError, OverflowError):
-            raise MapFormatError(f"{name}: invalid sample in plain PGM data") from None
+        values = values[:count]
         if values.min() < 0:
             raise MapFormatError(f"{name}: negative sample in plain PGM data")
         pixels = values.reshape(height, width)
