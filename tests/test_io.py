@@ -20,6 +20,7 @@ from brokenness.io import (
     resample_to_resolution,
     save_map,
 )
+from brokenness.io.resample import cell_scale_offset
 
 DATA = Path(__file__).parent / "data"
 
@@ -457,6 +458,9 @@ def test_cell_centres_keep_world_position() -> None:
         w_old = m.cell_to_world_matrix() @ [x, y, 1]
         w_new = r.cell_to_world_matrix() @ [xb, y_new, 1]
         assert np.allclose(w_old, w_new)
+        scale, tx, ty = cell_scale_offset(m, r)
+        assert scale == pytest.approx(s)
+        assert (scale * x + tx, scale * y + ty) == pytest.approx((xb, y_new))
 
 
 @pytest.mark.parametrize("factor", [2, 3])

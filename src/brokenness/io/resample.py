@@ -20,7 +20,9 @@ corner stays where it is in the world, and every point keeps its world position
 States
 ------
 Downsampling (``s < 1``) is area-weighted, with exact overlap lengths of old and new cells
-(separable sparse matrices, no per-cell loop). With areas in units of one old cell:
+(separable sparse matrices, no per-cell loop). ``cv2.resize(INTER_AREA)`` is not used because
+it scales by ``new_size / old_size`` per axis, which differs from ``s`` once sizes are rounded,
+and anchors the top-left corner instead of the origin. With areas in units of one old cell:
 
 * **occupied** if the occupied area inside the new cell is at least 1/4 of an old cell. Every
   occupied old cell has at least a quarter of its area inside some new cell, so no wall or
@@ -45,7 +47,7 @@ from numpy.typing import NDArray
 from ..errors import MapError, ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 
-__all__ = ["common_resolution", "resample_to_resolution", "resampled_size"]
+__all__ = ["cell_scale_offset", "common_resolution", "resample_to_resolution", "resampled_size"]
 
 _EPS = 1e-9
 #: Occupied area (in old cells) that makes a new cell occupied.
@@ -144,6 +146,30 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
     else:
         out = _upsample(flipped, scale, shape)
     return OccupancyMap(np.ascontiguousarray(out[::-1]), new_res, m.origin, m.source)
+
+
+def cell_scale_offset(old: OccupancyMap, new: OccupancyMap) -> tuple[float, float, float]:
+    """Affine relation between the cells of a map and of its resampled copy.
+
+    For ``new = resample_to_resolution(old, r)`` the centre of old cell ``(x, y)`` (column,
+    row from the top) is at new cell ``(s * x + tx, s * y + ty)``, with
+    ``s = old.resolution / new.resolution``, ``tx = 0.5 * s - 0.5`` and
+    ``ty = 0.5 * s - 0.5 + (rows' - rows * s)`` (rows are anchored at the bottom).
+
+    Returns
+    -------
+    (s, tx, ty) : tuple of float
+
+    Raises
+    ------
+    MapError
+        If either map has no resolution.
+    """
+    if old.resolution is None or new.resolution is None:
+        raise MapError("both maps need a resolution to relate their cells")
+    s = old.resolution / new.resolution
+    t = 0.5 * s - 0.5
+    return s, t, t + (new.shape[0] - old.shape[0] * s)
 
 
 def common_resolution(a: OccupancyMap, b: OccupancyMap) -> float | None:
