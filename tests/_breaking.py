@@ -27,6 +27,8 @@ def break_map(
     reference: OccupancyMap,
     regions: Sequence[np.ndarray],
     motions: Sequence[RigidTransform],
+    *,
+    pad: int = 0,
 ) -> tuple[OccupancyMap, list[RigidTransform]]:
     """Move each region of ``reference`` by its motion and composite the pieces.
 
@@ -37,16 +39,20 @@ def break_map(
         Disjoint masks over the reference grid.
     motions : sequence of RigidTransform
         Reference cells -> broken-map cells, one per region.
+    pad : int
+        Cells added on every side of the broken map, so that moved regions stay on it.
 
     Returns
     -------
     broken : OccupancyMap
-        Same shape and geometry as the reference.
+        The reference's shape plus ``2 * pad`` (same resolution; origin moved by the pad).
     truth : list of RigidTransform
         Per region, the transform from broken-map cells back to reference cells (the
         convention of ``compute_brokenness``).
     """
-    h, w = reference.shape
+    shift = RigidTransform(0.0, pad, pad)
+    motions = [shift.compose(m) for m in motions]
+    h, w = reference.shape[0] + 2 * pad, reference.shape[1] + 2 * pad
     occupied = np.zeros((h, w), bool)
     free = np.zeros((h, w), bool)
     for region, motion in zip(regions, motions, strict=True):
@@ -57,7 +63,12 @@ def break_map(
     states = np.full((h, w), UNKNOWN, np.int8)
     states[free] = FREE
     states[occupied] = OCCUPIED
-    broken = OccupancyMap(states, reference.resolution, reference.origin, source="broken")
+    origin = reference.origin
+    if origin is not None and reference.resolution is not None:
+        r = reference.resolution
+        c, si = np.cos(origin[2]), np.sin(origin[2])
+        origin = (origin[0] - r * pad * (c - si), origin[1] - r * pad * (si + c), origin[2])
+    broken = OccupancyMap(states, reference.resolution, origin, source="broken")
     return broken, [m.inverse() for m in motions]
 
 

@@ -17,20 +17,34 @@ __version__ = "0.1.0"
 
 from .errors import BrokennessError, MapError, MapFormatError, MapSizeError, ParameterError
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from .io import MapWarning, load_map, resample_to_resolution, save_map
 from .masking import picture_distance
+from .measure import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition, compute_brokenness
+from .registration import Registration, register
 from .transform import RigidTransform
 
 __all__ = [
     "FREE",
+    "NOT_OCCUPIED",
     "OCCUPIED",
+    "UNASSIGNED",
     "UNKNOWN",
     "BrokennessError",
+    "BrokennessResult",
     "MapError",
     "MapFormatError",
     "MapSizeError",
+    "MapWarning",
     "OccupancyMap",
     "ParameterError",
+    "Partition",
+    "Registration",
     "RigidTransform",
     "__version__",
+    "compute_brokenness",
+    "load_map",
     "picture_distance",
+    "register",
+    "resample_to_resolution",
+    "save_map",
 ]

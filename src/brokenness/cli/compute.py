@@ -69,10 +69,9 @@ def run(args: argparse.Namespace) -> int:
 
         render_overlay(result, m, ref, args.overlay)
     if args.repaired:
-        from ..io import save_map
-        from ..report.repair import repair_map
+        from ..report.repair import write_repaired
 
-        save_map(repair_map(result, m, ref).map, args.repaired)
+        write_repaired(args.repaired, result, m, ref)
     if args.save_results:
         from ..report.results import save_results
 

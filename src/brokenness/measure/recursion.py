@@ -45,6 +45,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -55,12 +56,15 @@ from ..masking.distance import lookup_distance
 from ..registration.base import Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
-from .refine import refine_transform
+from .refine import polish_transform, refine_transform, soft_agreement, sweep_rotation
 from .result import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition
 
 __all__ = ["compute_brokenness"]
 
 MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
+
+#: Candidates (by raw agreement) that get the full refinement in each step.
+_REFINED_CANDIDATES = 2
 
 
 @dataclass(frozen=True)
@@ -294,12 +298,11 @@ def _common_resolution(m: OccupancyMap, ref: OccupancyMap) -> tuple[OccupancyMap
         or math.isclose(m.resolution, ref.resolution, rel_tol=1e-9)
     ):
         return m, RigidTransform.identity()
-    from ..io.resample import resample_to_resolution
+    from ..io.resample import cell_scale_offset, resample_to_resolution
 
-    s = m.resolution / ref.resolution
-    return resample_to_resolution(m, ref.resolution), RigidTransform(
-        0.0, 0.5 * s - 0.5, 0.5 * s - 0.5, s
-    )
+    working = resample_to_resolution(m, ref.resolution)
+    s, tx, ty = cell_scale_offset(m, working)
+    return working, RigidTransform(0.0, tx, ty, s)
 
 
 def _recurse(
@@ -342,7 +345,7 @@ def _recurse(
         chance = n * p0
         if k < min_cells or k < chance + significance * math.sqrt(chance * (1.0 - p0)):
             break
-        members = left[agree]
+        members = left[_with_fringe(transform, points[left], agree, index, merge_threshold)]
         moved = transform.apply(points[members])
         # Merge into an earlier partition whose transform explains this set as well.
         target = _merge_target(found, points[members], index, merge_threshold)
@@ -397,22 +400,77 @@ def _best_candidate(
     index: ReferenceIndex,
     threshold: float,
 ) -> tuple[RigidTransform, NDArray[np.bool_], float] | None:
-    """Refine each candidate and keep the one under which the most remaining cells agree."""
+    """Refine the most promising candidates; keep the one that aligns the most cells best.
+
+    Candidates are ranked by the smooth agreement score (:func:`soft_agreement`), which
+    rewards exact alignment over loose agreement: a transform that gains a few cells of
+    another partition by tilting the main one a little must not win.
+    """
+
+    def soft(moved: NDArray[np.float64]) -> float:
+        return soft_agreement(index.occupied_distance, moved, threshold)
+
+    def hard(moved: NDArray[np.float64]) -> NDArray[np.bool_]:
+        return index.occupied_agreement(moved, threshold)
+
+    raw = [
+        (soft(c.transform.apply(points)), i, c)
+        for i, c in enumerate(candidates)
+        if c.transform.scale == 1.0
+    ]
+    raw.sort(key=lambda item: (-item[0], item[1]))
     best: tuple[RigidTransform, NDArray[np.bool_], float] | None = None
-    best_k = -1
-    for cand in candidates:
-        t = cand.transform
-        if t.scale != 1.0:
+    best_score = -1.0
+    for _, _, cand in raw[:_REFINED_CANDIDATES]:
+        moved = cand.transform.apply(points)
+        agree = hard(moved)
+        if not agree.any():
             continue
+        swept = sweep_rotation(cand.transform, points, soft, moved[agree].mean(axis=0))
         refined = refine_transform(
-            t, points, index.tree, gate=3.0 * threshold + 2.0, final_gate=threshold + 0.5
+            swept,
+            points,
+            index.tree,
+            gate=threshold + 1.0,
+            final_gate=threshold + 1.0,
+            iterations=30,
         )
-        for option in (refined, t):
-            agree = index.occupied_agreement(option.apply(points), threshold)
-            k = int(np.count_nonzero(agree))
-            if k > best_k:
-                best, best_k = (option, agree, float(cand.confidence)), k
+        polished = polish_transform(
+            refined, points[hard(refined.apply(points))], index.occupied_distance, threshold
+        )
+        for option in (polished, refined, swept, cand.transform):
+            value = soft(option.apply(points))
+            if value > best_score:
+                best_score = value
+                best = (option, hard(option.apply(points)), float(cand.confidence))
     return best
+
+
+def _with_fringe(
+    transform: RigidTransform,
+    pts: NDArray[np.float64],
+    agree: NDArray[np.bool_],
+    index: ReferenceIndex,
+    loose: float,
+) -> NDArray[np.bool_]:
+    """``agree`` plus the cells that agree loosely and touch it in the map (8-connected).
+
+    Thick walls, clutter and a residual error of a fraction of a cell leave a fringe of
+    cells just beyond the threshold around a partition. Left behind, such a fringe could later
+    pass for a partition of its own; it belongs to the partition it touches.
+    """
+    near = lookup_distance(index.occupied_distance, transform.apply(pts)) <= loose
+    if np.array_equal(near, agree):
+        return agree
+    cols = pts[:, 0].astype(np.intp)
+    rows = pts[:, 1].astype(np.intp)
+    c0, r0 = cols.min(), rows.min()
+    grid = np.zeros((rows.max() - r0 + 1, cols.max() - c0 + 1), np.uint8)
+    grid[rows[near] - r0, cols[near] - c0] = 1
+    _, comp = cv2.connectedComponents(grid, connectivity=8)
+    seeds = np.unique(comp[rows[agree] - r0, cols[agree] - c0])
+    touched = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
+    return agree | (near & touched)
 
 
 def _merge_target(
