@@ -116,34 +116,21 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
         f"{result.seconds:.3f} s)"
     )
     metres = any(p.transform.world is not None for p in result.partitions)
-    table = Table(box=None, header_style="bold")
-    for col in ("#", "cells", "share", "rotation deg", "translation cells"):
-        table.add_column(col, justify="right")
-    if metres:
-        table.add_column("world rot deg", justify="right")
-        table.add_column("world transl m", justify="right")
-    for col in ("offset deg", "displacement", "confidence"):
-        table.add_column(col, justify="right")
+    table = Table(box=None, header_style="bold", pad_edge=False, collapse_padding=True)
+    headers = ["#", "cells", "share", "rot°", "shift (cells)"]
+    headers += ["world rot°", "shift (m)"] if metres else []
+    headers += ["off°", "off m" if metres else "off", "conf"]
+    for col in headers:
+        table.add_column(col, justify="right", no_wrap=True)
     for p in result.partitions:
         t = p.transform
-        row = [
-            str(p.index),
-            str(p.cells),
-            f"{100 * p.fraction:.1f}%",
-            f"{t.rotation_deg:.2f}",
-            f"({t.tx:.1f}, {t.ty:.1f})",
-        ]
+        row = [str(p.index), str(p.cells), f"{100 * p.fraction:.1f}%", f"{t.rotation_deg:.2f}"]
+        row.append(f"{t.tx:.1f}, {t.ty:.1f}")
         if metres:
             w = t.world
-            row += (
-                [f"{w.rotation_deg:.2f}", f"({w.tx:.2f}, {w.ty:.2f})"]
-                if w is not None
-                else ["", ""]
-            )
-        disp = f"{p.displacement:.1f} cells"
-        if p.displacement_m is not None:
-            disp += f" / {p.displacement_m:.2f} m"
-        row += [f"{p.rotation_offset_deg:.2f}", disp, f"{p.confidence:.2f}"]
+            row += ["", ""] if w is None else [f"{w.rotation_deg:.2f}", f"{w.tx:.2f}, {w.ty:.2f}"]
+        off = p.displacement_m if metres and p.displacement_m is not None else p.displacement
+        row += [f"{p.rotation_offset_deg:.2f}", f"{off:.2f}", f"{p.confidence:.2f}"]
         table.add_row(*row)
     console.print(table)
     console.print(
