@@ -32,9 +32,9 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument(
         "--candidates",
         type=int,
-        default=4,
+        default=3,
         metavar="N",
-        help="number of ranked hypotheses to report (default 4)",
+        help="number of ranked hypotheses to report (default 3)",
     )
     p.set_defaults(func=run)
 

@@ -37,25 +37,27 @@ def bounding_box(mask: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
     return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
 
 
-def coarse_indicator(occupied: NDArray[np.bool_], factor: int) -> F32:
+def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: int) -> F32:
     """Occupied indicator (1.0 / 0.0), max-pooled by ``factor`` so that thin walls survive.
 
     Coarse cell ``(X, Y)`` covers the fine cells ``factor*X .. factor*X + factor - 1`` (the
     array is zero-padded up to a multiple of ``factor``), so its centre is the fine point
     ``factor*X + (factor - 1)/2``.
     """
+    img = np.ascontiguousarray(occupied)
+    img = img.view(np.uint8) if img.dtype == np.bool_ else (img != 0).view(np.uint8)
     if factor <= 1:
-        return occupied.astype(np.float32)
-    img = occupied.view(np.uint8) if occupied.dtype == np.bool_ else occupied.astype(np.uint8)
+        return img.astype(np.float32)
     rows, cols = img.shape
     pr, pc = -rows % factor, -cols % factor
     if pr or pc:
-        img = np.pad(img, ((0, pr), (0, pc)))
+        img = cv2.copyMakeBorder(img, 0, pr, 0, pc, cv2.BORDER_CONSTANT, value=0)
     r, c = img.shape
-    # two one-axis reductions over contiguous blocks (much faster than one over two axes)
+    # max over row blocks, then (transposed, so the reduction is again over whole rows)
+    # over column blocks: numpy reduces contiguous rows fast, short inner axes slowly
     img = img.reshape(r // factor, factor, c).max(axis=1)
-    img = img.reshape(r // factor, c // factor, factor).max(axis=2)
-    return img.astype(np.float32)
+    img = np.ascontiguousarray(img.T).reshape(c // factor, factor, r // factor).max(axis=1)
+    return np.ascontiguousarray(img.T, dtype=np.float32)
 
 
 def hann_window(shape: tuple[int, int]) -> F32:

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import MapError, ParameterError
-from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from ..grid import OCCUPIED, UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
 from .base import Candidate, Registration
 from .methods import make_registrar
@@ -36,9 +36,8 @@ def as_map(value: OccupancyMap | ArrayLike, what: str = "map") -> OccupancyMap:
     if arr.ndim != 2:
         raise MapError(f"the {what} must be a 2D grid, got an array of shape {arr.shape}")
     if np.issubdtype(arr.dtype, np.integer) and arr.size:
-        values = np.isin(arr, (UNKNOWN, FREE, OCCUPIED))
-        if values.all():
-            return OccupancyMap(arr.astype(np.int8))
+        if int(arr.min()) >= UNKNOWN and int(arr.max()) <= OCCUPIED:
+            return OccupancyMap(arr.astype(np.int8, copy=False))
     return OccupancyMap.from_array(arr)
 
 
@@ -48,7 +47,7 @@ def register(
     *,
     method: str = "ifmi",
     seed: int | None = None,
-    max_candidates: int = 4,
+    max_candidates: int = 3,
     **options: Any,
 ) -> Registration:
     """Find the rigid transform that maps the cells of ``moving`` onto ``reference``.
@@ -63,7 +62,7 @@ def register(
         Registration method, see :func:`brokenness.registration.make_registrar`.
     seed : int, optional
         Seed of the stochastic method (iFMI is deterministic and ignores it).
-    max_candidates : int, default 4
+    max_candidates : int, default 3
         Number of ranked hypotheses kept in :attr:`Registration.candidates`.
     **options
         Options of the method, e.g. ``n_angles`` or ``max_size`` of
