@@ -130,14 +130,28 @@ class RigidTransform:
         world = None
         if self.world is not None and first.world is not None:
             world = self.world.compose(first.world)
-        t = RigidTransform.from_matrix(self.matrix @ first.matrix)
-        return RigidTransform(t.rotation, t.tx, t.ty, t.scale, world)
+        c = self.scale * math.cos(self.rotation)
+        s = self.scale * math.sin(self.rotation)
+        return RigidTransform(
+            self.rotation + first.rotation,
+            c * first.tx - s * first.ty + self.tx,
+            s * first.tx + c * first.ty + self.ty,
+            self.scale * first.scale,
+            world,
+        )
 
     def inverse(self) -> RigidTransform:
         """The inverse transform (reference cells to map cells)."""
-        t = RigidTransform.from_matrix(np.linalg.inv(self.matrix))
+        c = math.cos(self.rotation) / self.scale
+        s = math.sin(self.rotation) / self.scale
         world = None if self.world is None else self.world.inverse()
-        return RigidTransform(t.rotation, t.tx, t.ty, t.scale, world)
+        return RigidTransform(
+            -self.rotation,
+            -(c * self.tx + s * self.ty),
+            -(-s * self.tx + c * self.ty),
+            1.0 / self.scale,
+            world,
+        )
 
     def with_world(self, moving: OccupancyMap, reference: OccupancyMap) -> RigidTransform:
         """Attach the world-frame version, given the two maps' geometry.

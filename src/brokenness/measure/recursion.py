@@ -430,10 +430,9 @@ def _best_candidate(
         refined = refine_transform(
             swept,
             points,
-            index.tree,
+            index.occupied_points,
+            index.nearest_occupied,
             gate=threshold + 1.0,
-            final_gate=threshold + 1.0,
-            iterations=30,
         )
         polished = polish_transform(
             refined, points[hard(refined.apply(points))], index.occupied_distance, threshold

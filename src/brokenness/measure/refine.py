@@ -3,8 +3,9 @@
 Spectral registration is accurate to a fraction of a degree; far from the rotation centre
 that can still be more than the masking threshold. A few ICP iterations against the
 reference's occupied cells, with a shrinking correspondence gate, remove that residual
-before the map is masked. Each iteration is a KD-tree query and a closed-form 2D Procrustes
-fit (no Python loop over cells).
+before the map is masked. Each iteration is an array lookup of the nearest reference cell (a
+labelled distance transform computed once per reference) and a closed-form 2D Procrustes fit
+(no Python loop over cells).
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ..transform import RigidTransform
 
@@ -57,14 +57,14 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
 def refine_transform(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    tree: cKDTree,
+    reference_points: NDArray[np.float64],
+    nearest: NDArray[np.int32],
     *,
     gate: float,
-    final_gate: float,
-    iterations: int = 8,
+    iterations: int = 30,
     max_points: int = 4000,
 ) -> RigidTransform:
-    """Refine ``transform`` so that ``points`` land closer to the reference cells in ``tree``.
+    """Refine ``transform`` so that ``points`` land closer to the occupied reference cells.
 
     Parameters
     ----------
@@ -72,14 +72,15 @@ def refine_transform(
         Starting estimate, map cells -> reference cells (scale 1).
     points : ndarray, shape (N, 2)
         Occupied map cells to align (others' cells may be among them: the gate rejects them).
-    tree : cKDTree
-        Index of the occupied reference cells.
+    reference_points : ndarray, shape (M, 2)
+        Occupied reference cells.
+    nearest : ndarray of int32, 2D
+        Per reference cell, the row of ``reference_points`` nearest to it
+        (:attr:`brokenness.masking.ReferenceIndex.nearest_occupied`).
     gate : float
-        Correspondences farther than this (cells) are ignored in the first iteration...
-    final_gate : float
-        ...shrinking linearly to this one in the last.
+        Correspondences farther than this (cells) are ignored (trimmed ICP).
     iterations : int
-        Number of ICP iterations.
+        Largest number of ICP iterations (it stops earlier once the steps vanish).
     max_points : int
         At most this many points take part, picked by a fixed stride (deterministic).
 
@@ -91,15 +92,20 @@ def refine_transform(
     if points.shape[0] > max_points:
         stride = int(math.ceil(points.shape[0] / max_points))
         points = points[::stride]
+    h, w = nearest.shape
     current = transform
-    for i in range(iterations):
-        g = gate + (final_gate - gate) * (i / max(iterations - 1, 1))
+    for _ in range(iterations):
         moved = current.apply(points)
-        dist, idx = tree.query(moved, k=1, distance_upper_bound=g)
-        inliers = np.isfinite(dist)
+        cols = np.rint(moved[:, 0])
+        rows = np.rint(moved[:, 1])
+        inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+        matched = np.full(moved.shape, np.inf)
+        idx = nearest[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
+        matched[inside] = reference_points[idx]
+        inliers = np.linalg.norm(moved - matched, axis=1) <= gate
         if np.count_nonzero(inliers) < 3:
             break
-        step = fit_rigid(moved[inliers], tree.data[idx[inliers]])
+        step = fit_rigid(moved[inliers], matched[inliers])
         current = step.compose(current)
         if abs(step.rotation) < 1e-7 and math.hypot(step.tx, step.ty) < 1e-5:
             break
