@@ -38,7 +38,7 @@ def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
 
 def distance_field(cells: NDArray[np.bool_]) -> NDArray[np.float32]:
     """Euclidean distance (cells) from every cell to the nearest True cell."""
-    other = np.where(cells, 0, 255).astype(np.uint8)
+    other = np.ascontiguousarray(~cells).view(np.uint8)  # non-zero: not one of the cells
     return cv2.distanceTransform(other, cv2.DIST_L2, cv2.DIST_MASK_5)
 
 

@@ -125,7 +125,7 @@ class IFMIRegistrar:
         The translation stage works on images of at most about this many cells per side;
         larger maps are max-pooled by an integer factor (chosen from the reference's occupied
         bounding box).
-    rotation_size : int, default 512
+    rotation_size : int, default 384
         The same for the rotation stage, which costs one FFT per map and so affords a finer
         image (the angle is what the full-resolution refinement can least repair).
     rotation_peaks : int, default 2
@@ -160,7 +160,7 @@ class IFMIRegistrar:
         n_radii: int = 64,
         band: tuple[float, float] = (0.05, 0.8),
         max_size: int = 160,
-        rotation_size: int = 512,
+        rotation_size: int = 384,
         rotation_peaks: int = 2,
         refine: bool = True,
         refine_iterations: int = 6,
@@ -357,21 +357,29 @@ class IFMIRegistrar:
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
+        best_n0 = prescreen[order[0]][0]
         for k in order:
-            _, z, full = prescreen[k]
+            n0, z, full = prescreen[k]
             score = 0
             if ref.distance is not None:
-                before = _refine.inlier_count(ref.distance, mov.points, full, self.agree_cells)
-                refined = _refine.refine_rigid(
-                    ref.distance,
-                    mov.points,
-                    full,
-                    start_radius=start,
-                    end_radius=self.agree_cells,
-                    iterations=self.refine_iterations,
-                )
-                after = _refine.inlier_count(ref.distance, mov.points, refined, self.agree_cells)
-                full, score = (refined, after) if after >= before else (full, before)
+                score = _refine.inlier_count(ref.distance, mov.points, full, self.agree_cells)
+                # refine the hypotheses that are at least half as good near the walls as the
+                # best one; the refinement only gains cells already near a wall, so the rest
+                # are very unlikely to win and keep their spectral estimate (saves time)
+                if 2 * n0 >= best_n0:
+                    refined = _refine.refine_rigid(
+                        ref.distance,
+                        mov.points,
+                        full,
+                        start_radius=start,
+                        end_radius=self.agree_cells,
+                        iterations=self.refine_iterations,
+                    )
+                    after = _refine.inlier_count(
+                        ref.distance, mov.points, refined, self.agree_cells
+                    )
+                    if after >= score:
+                        full, score = refined, after
             if any(self._same(full, other[3], mov.points) for other in scored):
                 continue
             scored.append((score, z, k, full))
