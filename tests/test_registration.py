@@ -390,3 +390,17 @@ def test_confidence_separates_matches_from_unrelated_maps(maps: dict[str, Occupa
     assert register(ref, moving).confidence > 0.9
     assert register(ref, synthetic_map(11)).confidence < 0.5
     assert register(ref, maps["tb3"]).confidence < 0.5
+
+
+def test_small_reference_large_moving_map_is_pooled_more() -> None:
+    ref = synthetic_map(4, (120, 150))
+    big = np.full((1500, 1400), -1, dtype=np.int8)
+    big[700:820, 600:750] = ref  # the reference is a small part of the moving map
+    big[5, 5:1395] = big[1494, 5:1395] = 1  # far walls: the moving map spans 1500 cells
+    registrar = IFMIRegistrar()
+    prepared = registrar.prepare_reference(ref)
+    assert prepared.factor == 1
+    found = registrar.candidates(prepared, big, 2)[0].transform
+    assert abs(found.rotation_deg) < ROT_TOL_DEG
+    assert found.translation == pytest.approx((-600.0, -700.0), abs=1.5)
+    assert max(prepared.levels) > 1  # pooled more for the large moving map

@@ -70,20 +70,28 @@ _SPECTRA_CACHED = 8
 
 @dataclass
 class _Prepared:
-    """What :meth:`IFMIRegistrar.candidates` needs of the reference (reused across calls)."""
+    """What :meth:`IFMIRegistrar.candidates` needs of the reference (reused across calls).
+
+    ``factor`` and ``rotation_factor`` are the pooling factors the reference's own extent
+    asks for; a much larger moving map raises them for its call, and the pooled images,
+    signatures and spectra of each factor are cached here.
+    """
 
     shape: tuple[int, int]
     factor: int
     rotation_factor: int
     offset: tuple[int, int]  # (col0, row0) of the cropped reference in full cells
-    coarse: NDArray[np.float32]  # cropped, pooled occupied indicator
-    signature: NDArray[np.complex64]  # angular spectrum of the polar log-magnitude
+    crop: NDArray[np.bool_]  # occupied cells inside the bounding box, full resolution
     distance: NDArray[np.float32] | None  # full-resolution distance map (refinement)
-    spectra: dict[tuple[int, int], NDArray[np.complex64]] = field(default_factory=dict)
+    levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
+    signatures: dict[int, NDArray[np.complex64]] = field(default_factory=dict)
+    spectra: dict[tuple[int, int, int], NDArray[np.complex64]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class _Moving:
+    factor: int
+    rotation_factor: int
     coarse: NDArray[np.float32]
     for_rotation: NDArray[np.float32]
     offset: tuple[int, int]
@@ -258,20 +266,31 @@ class IFMIRegistrar:
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
-        crop = occ[r0:r1, c0:c1]
-        coarse = _spectral.coarse_indicator(crop, factor)
-        for_rotation = (
-            coarse if rot_factor == factor else _spectral.coarse_indicator(crop, rot_factor)
-        )
-        return _Prepared(
+        prepared = _Prepared(
             shape=(int(states.shape[0]), int(states.shape[1])),
             factor=factor,
             rotation_factor=rot_factor,
             offset=(c0, r0),
-            coarse=coarse,
-            signature=self._signature(for_rotation),
+            crop=np.ascontiguousarray(occ[r0:r1, c0:c1]),
             distance=_refine.distance_field(_refine.edges(occ)) if self.refine else None,
         )
+        self._reference_signature(prepared, rot_factor)  # the usual work, done up front
+        self._level(prepared, factor)
+        return prepared
+
+    @staticmethod
+    def _level(ref: _Prepared, factor: int) -> NDArray[np.float32]:
+        """The reference's occupied indicator pooled by ``factor`` (cached)."""
+        img = ref.levels.get(factor)
+        if img is None:
+            img = ref.levels[factor] = _spectral.coarse_indicator(ref.crop, factor)
+        return img
+
+    def _reference_signature(self, ref: _Prepared, factor: int) -> NDArray[np.complex64]:
+        sig = ref.signatures.get(factor)
+        if sig is None:
+            sig = ref.signatures[factor] = self._signature(self._level(ref, factor))
+        return sig
 
     def _moving(self, moving_states: NDArray[np.int8], ref: _Prepared) -> _Moving:
         states = np.asarray(moving_states)
@@ -283,33 +302,39 @@ class IFMIRegistrar:
             raise MapError("the moving map has no occupied cell, there is nothing to register")
         r0, r1, c0, c1 = box
         crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
+        # a moving map much larger than the reference is pooled more (bounded FFT sizes)
+        extent = max(r1 - r0, c1 - c0)
+        factor = max(ref.factor, math.ceil(extent / self.max_size))
+        rot_factor = max(ref.rotation_factor, math.ceil(extent / self.rotation_size))
         found = cv2.findNonZero(_refine.edges(crop).view(np.uint8))
         xy = found.reshape(-1, 2)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
             xy = xy[pick]
         points = xy.astype(np.float64) + np.array([c0, r0], dtype=np.float64)
-        coarse = _spectral.coarse_indicator(crop, ref.factor)
+        coarse = _spectral.coarse_indicator(crop, factor)
         for_rotation = (
-            coarse
-            if ref.rotation_factor == ref.factor
-            else _spectral.coarse_indicator(crop, ref.rotation_factor)
+            coarse if rot_factor == factor else _spectral.coarse_indicator(crop, rot_factor)
         )
-        return _Moving(coarse, for_rotation, (c0, r0), points)
+        return _Moving(factor, rot_factor, coarse, for_rotation, (c0, r0), points)
 
-    def _reference_spectrum(self, ref: _Prepared, padded: tuple[int, int]) -> NDArray[np.complex64]:
-        spec = ref.spectra.get(padded)
+    def _reference_spectrum(
+        self, ref: _Prepared, factor: int, padded: tuple[int, int]
+    ) -> NDArray[np.complex64]:
+        key = (factor, *padded)
+        spec = ref.spectra.get(key)
         if spec is None:
-            raw = scipy.fft.rfft2(ref.coarse, s=padded, workers=self.workers)
+            raw = scipy.fft.rfft2(self._level(ref, factor), s=padded, workers=self.workers)
             spec = _spectral.whiten(raw.astype(np.complex64))
             if len(ref.spectra) >= _SPECTRA_CACHED:  # bounded: drop the oldest padding
                 del ref.spectra[next(iter(ref.spectra))]
-            ref.spectra[padded] = spec
+            ref.spectra[key] = spec
         return spec
 
     def _rotations(self, ref: _Prepared, mov: _Moving) -> list[float]:
         """Rotation hypotheses (radians, modulo pi), best angle-correlation peak first."""
-        cross = ref.signature * np.conj(self._signature(mov.for_rotation))
+        signature = self._reference_signature(ref, mov.rotation_factor)
+        cross = signature * np.conj(self._signature(mov.for_rotation))
         cross = cross.sum(axis=0)
         corr = scipy.fft.irfft(_spectral.whiten(cross), n=self.n_angles)
         n = self.n_angles
@@ -339,8 +364,8 @@ class IFMIRegistrar:
                 f"max_candidates must be a positive integer, got {max_candidates!r}"
             )
         ref = prepared_reference
-        f = ref.factor
         mov = self._moving(moving_states, ref)
+        f = mov.factor
         hyps = self._spectral_hypotheses(ref, mov)
         # coarse (cropped, pooled) frames -> full cells: X_full = f * X + (f - 1)/2 + offset
         half = 0.5 * (f - 1)
@@ -428,12 +453,13 @@ class IFMIRegistrar:
         g = mov.coarse
         h, w = g.shape
         side = math.ceil(math.hypot(h, w)) + 2  # canvas holding the moving image at any angle
-        hr, wr = ref.coarse.shape
+        coarse_ref = self._level(ref, mov.factor)
+        hr, wr = coarse_ref.shape
         padded = (
             scipy.fft.next_fast_len(hr + side, real=True),
             scipy.fft.next_fast_len(wr + side, real=True),
         )
-        spec_ref = self._reference_spectrum(ref, padded)
+        spec_ref = self._reference_spectrum(ref, mov.factor, padded)
         centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
         centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
         out: list[tuple[NDArray[np.float64], float]] = []
