@@ -65,6 +65,8 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 
 #: Candidates (by raw agreement) that get the full refinement in each step.
 _REFINED_CANDIDATES = 2
+#: At most this many cells (an even stride of them) score the hypotheses of a step.
+_SAMPLE_CELLS = 4000
 
 
 @dataclass(frozen=True)
@@ -413,36 +415,40 @@ def _best_candidate(
     def hard(moved: NDArray[np.float64]) -> NDArray[np.bool_]:
         return index.occupied_agreement(moved, threshold)
 
+    # Hypotheses are scored on an evenly strided sample of the cells (deterministic).
+    sample = points[:: max(1, -(-points.shape[0] // _SAMPLE_CELLS))]
     raw = [
-        (soft(c.transform.apply(points)), i, c)
+        (soft(c.transform.apply(sample)), i, c)
         for i, c in enumerate(candidates)
         if c.transform.scale == 1.0
     ]
     raw.sort(key=lambda item: (-item[0], item[1]))
-    best: tuple[RigidTransform, NDArray[np.bool_], float] | None = None
+    best: tuple[RigidTransform, float] | None = None
     best_score = -1.0
     for _, _, cand in raw[:_REFINED_CANDIDATES]:
-        moved = cand.transform.apply(points)
+        moved = cand.transform.apply(sample)
         agree = hard(moved)
         if not agree.any():
             continue
-        swept = sweep_rotation(cand.transform, points, soft, moved[agree].mean(axis=0))
+        swept = sweep_rotation(cand.transform, sample, soft, moved[agree].mean(axis=0))
         refined = refine_transform(
             swept,
-            points,
+            sample,
             index.occupied_points,
             index.nearest_occupied,
             gate=threshold + 1.0,
         )
         polished = polish_transform(
-            refined, points[hard(refined.apply(points))], index.occupied_distance, threshold
+            refined, sample[hard(refined.apply(sample))], index.occupied_distance, threshold
         )
         for option in (polished, refined, swept, cand.transform):
-            value = soft(option.apply(points))
+            value = soft(option.apply(sample))
             if value > best_score:
                 best_score = value
-                best = (option, hard(option.apply(points)), float(cand.confidence))
-    return best
+                best = (option, float(cand.confidence))
+    if best is None:
+        return None
+    return best[0], hard(best[0].apply(points)), best[1]
 
 
 def _with_fringe(

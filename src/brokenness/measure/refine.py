@@ -61,8 +61,8 @@ def refine_transform(
     nearest: NDArray[np.int32],
     *,
     gate: float,
-    iterations: int = 30,
-    max_points: int = 4000,
+    iterations: int = 20,
+    max_points: int = 2000,
 ) -> RigidTransform:
     """Refine ``transform`` so that ``points`` land closer to the occupied reference cells.
 
@@ -107,7 +107,7 @@ def refine_transform(
             break
         step = fit_rigid(moved[inliers], matched[inliers])
         current = step.compose(current)
-        if abs(step.rotation) < 1e-7 and math.hypot(step.tx, step.ty) < 1e-5:
+        if abs(step.rotation) < 1e-4 and math.hypot(step.tx, step.ty) < 1e-2:
             break
     return current
 
