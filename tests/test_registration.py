@@ -323,6 +323,7 @@ def test_empty_maps_raise_map_error(maps: dict[str, OccupancyMap]) -> None:
         {"band": "wide"},
         {"max_size": 10},
         {"rotation_peaks": 0},
+        {"peak_ratio": 1.5},
         {"refine": "yes"},
         {"agree_cells": -1.0},
         {"no_such_option": 1},

@@ -158,7 +158,8 @@ def refine_rigid(
         if not np.all(np.isfinite(step)):
             break
         params = params + step
-        if k >= shrink and abs(step[0]) < 1e-7 and abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+        # converged: the last step moved every point by about 0.01 cell or less
+        if k >= shrink and abs(step[0]) < 1e-5 and abs(step[1]) < 1e-2 and abs(step[2]) < 1e-2:
             break
     theta, mx, my = params
     c, s = math.cos(theta), math.sin(theta)
