@@ -214,6 +214,7 @@ class _PreparedReference:
 
     tables: MapTables
     centroid: NDArray[np.float64]
+    known_box: tuple[tuple[float, float], tuple[float, float]]
 
 
 def _positive_int(name: str, value: Any, minimum: int = 1) -> int:
@@ -245,9 +246,13 @@ class RandomWalkRegistrar:
         the same input gives the same answer bit for bit.
     rotations : int
         Number of start angles, evenly spread over 360 degrees (default 12).
-    start_at_identity : bool
-        Besides the walkers that start with the centroids aligned, start one walker per angle
-        about the moving map's own position (default True; see the module notes).
+    start_grid : int
+        Start positions tried per angle: the centroid-aligned one, the moving map's own
+        position, and a ``start_grid x start_grid`` lattice over the reference's known cells
+        (default 6; 0 for the first two only).
+    walkers_per_angle : int
+        The best this many start positions per angle (lowest Delta) each start a walker
+        (default 2): ``rotations * walkers_per_angle`` walkers in all.
     max_iterations : int
         Steps per walker at most (default 1500).
     patience : int
@@ -282,7 +287,7 @@ class RandomWalkRegistrar:
     Raises
     ------
     ParameterError
-        For an out-of-range option.
+        For an unknown or out-of-range option.
     """
 
     name = "random-walk"
@@ -292,7 +297,8 @@ class RandomWalkRegistrar:
         *,
         seed: int | None = None,
         rotations: int = 12,
-        start_at_identity: bool = True,
+        start_grid: int = 6,
+        walkers_per_angle: int = 2,
         max_iterations: int = 1500,
         patience: int = 100,
         tolerance: float = 0.01,
@@ -306,18 +312,18 @@ class RandomWalkRegistrar:
         c_lock: float | None = None,
         max_points: int = 20000,
         dedupe_cells: float = 3.0,
+        **unknown: Any,
     ) -> None:
+        if unknown:
+            raise ParameterError(f"unknown option(s) for random-walk: {', '.join(sorted(unknown))}")
         if seed is None:
             seed = DEFAULT_SEED
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ParameterError(f"seed must be a non-negative integer or None, got {seed!r}")
         self.seed = int(seed)
         self.rotations = _positive_int("rotations", rotations)
-        if not isinstance(start_at_identity, (bool, np.bool_)):
-            raise ParameterError(
-                f"start_at_identity must be True or False, got {start_at_identity!r}"
-            )
-        self.start_at_identity = bool(start_at_identity)
+        self.start_grid = _positive_int("start_grid", start_grid, minimum=0)
+        self.walkers_per_angle = _positive_int("walkers_per_angle", walkers_per_angle)
         self.max_iterations = _positive_int("max_iterations", max_iterations)
         self.patience = _positive_int("patience", patience)
         self.tolerance = _positive_float("tolerance", tolerance, allow_zero=True)
@@ -357,7 +363,9 @@ class RandomWalkRegistrar:
         tables = build_tables(ref, self.max_points)
         if tables.counts[0] == 0:
             raise MapError("the reference map has no occupied cell")
-        return _PreparedReference(tables=tables, centroid=tables.centroid)
+        rows, cols = np.nonzero(ref >= 0)
+        box = ((float(cols.min()), float(rows.min())), (float(cols.max()), float(rows.max())))
+        return _PreparedReference(tables=tables, centroid=tables.centroid, known_box=box)
 
     def candidates(
         self, prepared_reference: Any, moving_states: NDArray[np.int8], max_candidates: int
@@ -437,12 +445,7 @@ def _walk(reg: RandomWalkRegistrar, prepared: _PreparedReference, moving: MapTab
     def evaluate(st: NDArray[np.float64]) -> Any:
         return score(ref, moving, *_transform_arrays(st, pivot), lock)
 
-    # Start poses: evenly spread angles; centroids aligned, and about the map's own position.
-    angles = 2.0 * math.pi * np.arange(reg.rotations) / reg.rotations
-    starts = [np.column_stack([angles, np.tile(prepared.centroid, (reg.rotations, 1))])]
-    if reg.start_at_identity and np.linalg.norm(prepared.centroid - pivot) > reg.dedupe_cells:
-        starts.append(np.column_stack([angles, np.tile(pivot, (reg.rotations, 1))]))
-    state = np.vstack(starts)
+    state = _start_poses(reg, prepared, pivot, evaluate)
     n_walkers = state.shape[0]
 
     t_step = reg.translation_step
@@ -509,6 +512,37 @@ def _walk(reg: RandomWalkRegistrar, prepared: _PreparedReference, moving: MapTab
         evaluations=evaluations + n_walkers,
         steps=steps,
     )
+
+
+def _start_poses(
+    reg: RandomWalkRegistrar,
+    prepared: _PreparedReference,
+    pivot: NDArray[np.float64],
+    evaluate: Any,
+) -> NDArray[np.float64]:
+    """Deterministic start poses ``(theta, ux, uy)``: the best positions per start angle.
+
+    For each of ``rotations`` evenly spread angles, the moving map's centroid is tried at
+    the reference's centroid, at its own position (identity translation) and at the nodes of
+    a ``start_grid x start_grid`` lattice over the bounding box of the reference's known
+    cells; the ``walkers_per_angle`` lowest-Delta positions start a walker each.
+    """
+    angles = 2.0 * math.pi * np.arange(reg.rotations) / reg.rotations
+    positions = [prepared.centroid, pivot]
+    if reg.start_grid:
+        (x0, y0), (x1, y1) = prepared.known_box
+        frac = (np.arange(reg.start_grid) + 0.5) / reg.start_grid
+        gx, gy = np.meshgrid(x0 + frac * (x1 - x0), y0 + frac * (y1 - y0))
+        positions.extend(np.column_stack([gx.ravel(), gy.ravel()]))
+    pos = np.array(positions)
+    n_pos = pos.shape[0]
+    grid = np.column_stack([np.repeat(angles, n_pos), np.tile(pos, (reg.rotations, 1))])
+    values = evaluate(grid).delta.reshape(reg.rotations, n_pos)
+    keep = min(reg.walkers_per_angle, n_pos)
+    # Stable order: by Delta, ties by position index.
+    order = np.argsort(values, axis=1, kind="stable")[:, :keep]
+    chosen = order + (np.arange(reg.rotations) * n_pos)[:, None]
+    return grid[chosen.ravel()].copy()
 
 
 def _adapt(
