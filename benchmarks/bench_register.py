@@ -193,7 +193,7 @@ def peak_memory(ref: np.ndarray, mov: np.ndarray) -> tuple[int, int]:
     r = IFMIRegistrar()
     prepared = r.prepare_reference(ref)
     r.candidates(prepared, mov, 4)
-    cells = max(p[0] * p[1] for p in prepared.spectra)
+    cells = max(p[1] * p[2] for p in prepared.spectra)  # keys: (factor, rows, cols)
     return peak, cells
 
 

@@ -39,7 +39,8 @@ def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
 def distance_field(cells: NDArray[np.bool_]) -> NDArray[np.float32]:
     """Euclidean distance (cells) from every cell to the nearest True cell."""
     other = np.ascontiguousarray(~cells).view(np.uint8)  # non-zero: not one of the cells
-    return cv2.distanceTransform(other, cv2.DIST_L2, cv2.DIST_MASK_5)
+    out = cv2.distanceTransform(other, cv2.DIST_L2, cv2.DIST_MASK_5)
+    return np.asarray(out, dtype=np.float32)
 
 
 def sample(
@@ -58,7 +59,7 @@ def sample(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=outside,
     )
-    return out.reshape(-1)[:n]
+    return np.asarray(out, dtype=np.float32).reshape(-1)[:n]
 
 
 def inlier_count(

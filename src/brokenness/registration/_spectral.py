@@ -44,14 +44,18 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     array is zero-padded up to a multiple of ``factor``), so its centre is the fine point
     ``factor*X + (factor - 1)/2``.
     """
-    img = np.ascontiguousarray(occupied)
-    img = img.view(np.uint8) if img.dtype == np.bool_ else (img != 0).view(np.uint8)
+    src = np.ascontiguousarray(occupied)
+    img: NDArray[np.uint8] = (
+        src.view(np.uint8) if src.dtype == np.bool_ else (src != 0).view(np.uint8)
+    )
     if factor <= 1:
         return img.astype(np.float32)
     rows, cols = img.shape
     pr, pc = -rows % factor, -cols % factor
     if pr or pc:
-        img = cv2.copyMakeBorder(img, 0, pr, 0, pc, cv2.BORDER_CONSTANT, value=0)
+        img = np.asarray(
+            cv2.copyMakeBorder(img, 0, pr, 0, pc, cv2.BORDER_CONSTANT, value=0), dtype=np.uint8
+        )
     r, c = img.shape
     # max over row blocks, then (transposed, so the reduction is again over whole rows)
     # over column blocks: numpy reduces contiguous rows fast, short inner axes slowly

@@ -154,7 +154,7 @@ class IFMIRegistrar:
         Polish each hypothesis at full resolution (Gauss-Newton on the distance map).
     refine_iterations : int, default 6
         Gauss-Newton steps of the refinement.
-    max_points : int, default 2000
+    max_points : int, default 1000
         Occupied moving cells used by the refinement and the ranking (evenly subsampled).
     agree_cells : float, default 1.5
         A moving cell agrees with the reference when it lies within this distance (cells)
@@ -185,7 +185,7 @@ class IFMIRegistrar:
         peak_ratio: float = 0.5,
         refine: bool = True,
         refine_iterations: int = 6,
-        max_points: int = 2000,
+        max_points: int = 1000,
         agree_cells: float = 1.5,
         workers: int | None = None,
         **unknown: Any,
