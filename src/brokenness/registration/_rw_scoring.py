@@ -6,13 +6,14 @@ transforms is then a handful of numpy gathers and reductions over ``W x N`` samp
 
 Lookup tables
 -------------
-For each map and each kind ``c`` (occupied, free) one float32 table holds, per cell, the
+For each map and each kind ``c`` (occupied, free) one uint16 table holds, per cell, the
 Manhattan distance to the nearest cell of kind ``c`` if the cell itself is *known*, and
-``-1`` if it is unknown; a point that falls off the map also reads -1. One gather then
-answers three questions about a transformed cell of kind ``c``: is its landing cell known
-(``v >= 0``), does it agree (``v == 0``: the landing cell is of kind ``c``) or disagree
-(``v > 0``: known but of the other kind), and how far is the nearest cell of kind ``c``
-(``v``).
+:data:`UNKNOWN_VALUE` if it is unknown; a point that falls off the map reads the same. One
+gather then answers three questions about a transformed cell of kind ``c``: is its landing
+cell known (``v != UNKNOWN_VALUE``), does it agree (``v == 0``: the landing cell is of kind
+``c``) or disagree (known and ``v > 0``: the other kind), and how far is the nearest cell
+of kind ``c`` (``v``). Integer tables halve the memory traffic of float32 ones and make
+the sums exact.
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from ..masking import manhattan_distance_map
 __all__: list[str] = []
 
 KINDS: tuple[int, int] = (OCCUPIED, FREE)
+#: Table value of an unknown cell (and of every point off the map).
+UNKNOWN_VALUE: int = 65535
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,20 +41,22 @@ class MapTables:
     Attributes
     ----------
     shape : (rows, cols)
-    tables : tuple of two float32 arrays, shape (rows, cols)
+    tables : tuple of two uint16 arrays, shape (rows, cols)
         Lookup tables for occupied and free cells (see the module docstring).
-    points : tuple of two float32 arrays, shape (n_c, 3)
-        Homogeneous ``(x, y, 1)`` coordinates of the (sampled) occupied and free cells.
+    points : tuple of two float32 arrays, shape (3, n_c)
+        Homogeneous ``(x, y, 1)`` coordinates (as columns) of the (sampled) occupied and
+        free cells.
     weights : tuple of two floats
         ``N_c / n_c``: how many cells of the map one sampled cell stands for.
     counts : tuple of two ints
         ``N_c``, the number of occupied and free cells before sampling.
     cap : float
-        Distance used for a kind that is absent from the map (``rows + cols``).
+        Distance used for a kind that is absent from the map (``rows + cols``, and the
+        largest distance stored).
     """
 
     shape: tuple[int, int]
-    tables: tuple[NDArray[np.float32], NDArray[np.float32]]
+    tables: tuple[NDArray[np.uint16], NDArray[np.uint16]]
     points: tuple[NDArray[np.float32], NDArray[np.float32]]
     weights: tuple[float, float]
     counts: tuple[int, int]
@@ -68,9 +73,9 @@ class MapTables:
         total = np.zeros(2)
         mass = 0.0
         for pts, w in zip(self.points, self.weights, strict=True):
-            if pts.shape[0]:
-                total += pts[:, :2].astype(np.float64).sum(axis=0) * w
-                mass += pts.shape[0] * w
+            if pts.shape[1]:
+                total += pts[:2].astype(np.float64).sum(axis=1) * w
+                mass += pts.shape[1] * w
         return total / mass if mass else np.array([self.shape[1] / 2.0, self.shape[0] / 2.0])
 
 
@@ -88,7 +93,7 @@ def sample_indices(n: int, max_points: int) -> NDArray[np.intp]:
 def build_tables(states: NDArray[np.int8], max_points: int) -> MapTables:
     """Lookup tables and sampled coordinates of one map (see :class:`MapTables`)."""
     rows, cols = states.shape
-    cap = float(rows + cols)
+    cap = float(min(rows + cols, UNKNOWN_VALUE - 1))
     known = states >= 0
     tables = []
     points = []
@@ -97,12 +102,12 @@ def build_tables(states: NDArray[np.int8], max_points: int) -> MapTables:
     for kind in KINDS:
         mask = states == kind
         dist = manhattan_distance_map(mask)
-        dist = np.where(np.isfinite(dist), dist, np.float32(cap)).astype(np.float32)
-        tables.append(np.where(known, dist, np.float32(-1.0)).astype(np.float32))
+        dist = np.where(np.isfinite(dist), np.minimum(dist, cap), cap).astype(np.uint16)
+        tables.append(np.where(known, dist, UNKNOWN_VALUE).astype(np.uint16))
         r, c = np.nonzero(mask)
         n = r.size
         keep = sample_indices(n, max_points)
-        points.append(np.column_stack([c[keep], r[keep], np.ones(keep.size)]).astype(np.float32))
+        points.append(np.vstack([c[keep], r[keep], np.ones(keep.size)]).astype(np.float32))
         weights.append(n / keep.size if keep.size else 0.0)
         counts.append(n)
     return MapTables(
@@ -116,23 +121,24 @@ def build_tables(states: NDArray[np.int8], max_points: int) -> MapTables:
 
 
 def _lookup(
-    tables: MapTables, kind_index: int, points: NDArray[np.float32], matrices: NDArray[np.float32]
-) -> NDArray[np.float32]:
-    """Table values at the transformed points, shape (W, n); -1 off the map.
+    tables: MapTables, kind_index: int, points: NDArray[np.float32], matrix: NDArray[np.float32]
+) -> NDArray[np.uint16]:
+    """Table values at the transformed points, shape (W, n); unknown off the map.
 
-    ``points`` (n, 3) homogeneous, ``matrices`` (W, 3, 2) transposed affine matrices: one
-    matrix product gives all coordinates in OpenCV's two-channel map layout, and
+    ``points`` (3, n) homogeneous columns; ``matrix`` (2W, 3) holds the x rows of the ``W``
+    affine transforms, then their y rows. One matrix product gives all coordinates, and
     ``cv2.remap`` with nearest-neighbour interpolation (round half to even, like
-    ``numpy.rint``) gathers the table values, reading -1 outside the grid.
+    ``numpy.rint``) gathers the table values, reading unknown outside the grid.
     """
-    coords = np.matmul(points, matrices)
+    coords = matrix @ points
+    w = matrix.shape[0] // 2
     return cv2.remap(
         tables.tables[kind_index],
-        coords,
-        None,
+        coords[:w],
+        coords[w:],
         cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_CONSTANT,
-        borderValue=-1.0,
+        borderValue=UNKNOWN_VALUE,
     )
 
 
@@ -160,7 +166,7 @@ def score(
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
     c_lock: float,
-    chunk_elements: int = 160_000,
+    chunk_elements: int = 400_000,
 ) -> Scores:
     """Delta = Psi (restricted to the overlap) + c_lock * (disagree - agree), per transform.
 
@@ -186,7 +192,7 @@ def score(
     (the largest distance); a kind absent from the source map adds nothing. Agreement is
     counted in the moving -> reference direction, scaled back to cells when sampled.
     """
-    n_points = sum(p.shape[0] for p in (*moving.points, *reference.points))
+    n_points = sum(p.shape[1] for p in (*moving.points, *reference.points))
     group = max(1, chunk_elements // max(n_points, 1))
     if cos.shape[0] > group:
         parts = [
@@ -209,20 +215,20 @@ def score(
             )
         )
     w = cos.shape[0]
-    forward = np.empty((w, 3, 2), dtype=np.float32)  # rows: x, y, 1 -> columns x', y'
-    forward[:, 0, 0], forward[:, 1, 0], forward[:, 2, 0] = cos, -sin, tx
-    forward[:, 0, 1], forward[:, 1, 1], forward[:, 2, 1] = sin, cos, ty
-    inverse = np.empty((w, 3, 2), dtype=np.float32)
-    inverse[:, 0, 0], inverse[:, 1, 0] = cos, sin
-    inverse[:, 2, 0] = -(cos * tx + sin * ty)
-    inverse[:, 0, 1], inverse[:, 1, 1] = -sin, cos
-    inverse[:, 2, 1] = sin * tx - cos * ty
+    # Rows 0..W-1: x' = cos x - sin y + tx; rows W..2W-1: y' = sin x + cos y + ty.
+    forward = np.empty((2 * w, 3), dtype=np.float32)
+    forward[:w, 0], forward[:w, 1], forward[:w, 2] = cos, -sin, tx
+    forward[w:, 0], forward[w:, 1], forward[w:, 2] = sin, cos, ty
+    # The inverse: x = cos (x' - tx) + sin (y' - ty), y = -sin (x' - tx) + cos (y' - ty).
+    inverse = np.empty((2 * w, 3), dtype=np.float32)
+    inverse[:w, 0], inverse[:w, 1], inverse[:w, 2] = cos, sin, -(cos * tx + sin * ty)
+    inverse[w:, 0], inverse[w:, 1], inverse[w:, 2] = -sin, cos, sin * tx - cos * ty
     psi = np.zeros(w)
     agree = np.zeros(w)
     disagree = np.zeros(w)
     for k in range(len(KINDS)):
         # Moving -> reference.
-        if moving.points[k].shape[0]:
+        if moving.points[k].shape[1]:
             v = _lookup(reference, k, moving.points[k], forward)
             mean, n_known, n_agree = _reduce(v, reference.cap)
             psi += mean
@@ -230,22 +236,26 @@ def score(
             agree += n_agree * weight
             disagree += (n_known - n_agree) * weight
         # Reference -> moving, through the inverse transform.
-        if reference.points[k].shape[0]:
+        if reference.points[k].shape[1]:
             psi += _reduce(_lookup(moving, k, reference.points[k], inverse), moving.cap)[0]
     delta = psi + c_lock * (disagree - agree)
     return Scores(delta=delta, psi=psi, agree=agree, disagree=disagree)
 
 
 def _reduce(
-    v: NDArray[np.float32], cap: float
+    v: NDArray[np.uint16], cap: float
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
-    """Row-wise mean of the known (non-negative) entries, their count, and the zeros.
+    """Row-wise mean of the known entries, their count, and the zeros (agreements).
 
-    Unknown entries are exactly -1, so the sum of the known ones is ``sum(v) + n_unknown``.
-    Rows without a known entry get the mean ``cap``.
+    Integer sums, so the result does not depend on the summation order. Rows without a
+    known entry get the mean ``cap``.
     """
-    n_unknown = np.count_nonzero(v < 0, axis=1)
+    n_unknown = np.count_nonzero(v == UNKNOWN_VALUE, axis=1)
     n_known = v.shape[1] - n_unknown
-    total = v.sum(axis=1, dtype=np.float64) + n_unknown
+    # uint32 sums are twice as fast as int64 ones and cannot overflow below 65537 columns.
+    acc = np.uint32 if v.shape[1] <= 65536 else np.int64
+    total = (v.sum(axis=1, dtype=acc).astype(np.int64) - UNKNOWN_VALUE * n_unknown).astype(
+        np.float64
+    )
     mean = np.divide(total, n_known, out=np.full(v.shape[0], cap), where=n_known > 0)
     return mean, n_known, np.count_nonzero(v == 0, axis=1)
