@@ -94,6 +94,9 @@ class Registrar(Protocol):
     """
 
     name: str
+    #: Whether the method looks at free cells. If not, the recursion skips withdrawing the
+    #: free space around masked cells (a distance transform per step).
+    uses_free_space: bool
 
     def prepare_reference(self, reference_states: NDArray[np.int8]) -> Any:
         """Precompute what depends on the reference only."""

@@ -172,6 +172,8 @@ class IFMIRegistrar:
     """
 
     name = "ifmi"
+    #: iFMI registers the occupied cells only (see the module docstring).
+    uses_free_space = False
 
     def __init__(
         self,
