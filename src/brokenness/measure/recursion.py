@@ -425,7 +425,9 @@ def _best_candidate(
     raw.sort(key=lambda item: (-item[0], item[1]))
     best: tuple[RigidTransform, float] | None = None
     best_score = -1.0
-    for _, _, cand in raw[:_REFINED_CANDIDATES]:
+    # Refine the best hypothesis, and the runner-up only when it scored comparably.
+    contenders = [c for value, _, c in raw[:_REFINED_CANDIDATES] if value >= 0.5 * raw[0][0]]
+    for cand in contenders:
         moved = cand.transform.apply(sample)
         agree = hard(moved)
         if not agree.any():
