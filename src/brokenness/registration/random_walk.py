@@ -15,25 +15,41 @@ free). The *acceptance indicator* ``omega = agr / (agr + dis)`` judges the resul
 
 What is taken from where
 ------------------------
-- ``Delta``, ``agr``, ``dis``, ``omega`` and ``c_lock``: Birk & Carpin (2006), Sec. III.
+- ``Delta``, ``agr``, ``dis``, ``omega``, the weight ``c_lock`` and the picture distance
+  ``Psi`` (sum over occupied and free cells, both directions, of the mean Manhattan distance
+  to the nearest cell of the same kind): Birk & Carpin (2006), as summarised by Birk (2010).
   Here ``Psi`` is restricted to the overlap (cells whose counterpart under ``T`` is known),
   because in the recursion of Algorithm 1 the moving map is often only a part of the
   reference; the lock term rewards a large overlap.
-- The search: the adaptive random walk of Carpin & Pillonetto (2003/2005) as used by Birk &
-  Carpin (2006): a random walk whose Gaussian increments have a mean and a covariance
-  estimated from the last ``window`` *accepted* increments (so the walk gathers momentum
-  along directions that pay off and shrinks its steps near an optimum); an improving step
-  is always accepted, a worse one with a small fixed probability ``worse_acceptance``.
-- Several walkers, the best one wins: the multi-start is ours (the paper restarts the walk);
-  walkers start at ``rotations`` evenly spread angles with the centroids of the known cells
-  of both maps aligned, plus (``start_at_identity``) the same angles about the moving map's
-  own position, since in brokenness computation the map and its reference share a frame up
-  to the errors being measured.
-- The stopping rule (``patience`` steps without improvement of a walker's best, or
-  ``max_iterations``), the default step sizes and the default ``c_lock`` are our choices;
-  the papers do not publish numerical values. ``c_lock = lock_weight / N`` with ``N`` the
-  number of known moving cells, so that a perfect full overlap is worth ``lock_weight``
-  cells of picture distance whatever the map size.
+- The search: an adaptive random walk in the sense of Carpin & Pillonetto (2005), as Birk &
+  Carpin (2006) use it: Gaussian increments in ``(theta, tx, ty)`` whose mean and covariance
+  adapt to the walk's recent accepted steps; an improving step is always accepted, a worse
+  one with a small fixed probability ``worse_acceptance``. The exact update rule is ours:
+  the covariance is the second moment of the last ``window`` accepted increments (step
+  sizes follow the steps that paid off) plus a floor, and the mean is the average move of
+  the last ``window`` steps counting a rejected proposal as a move of 0. (A mean that only
+  averages accepted increments keeps pushing in its last direction forever once the walk
+  sits in an optimum, and we saw the walk drift out of the optimum that way.) Rotation
+  turns about the moving map's centroid, so that the three coordinates are decoupled.
+- Restarts: several walkers, the best one wins. Their start poses are ours and
+  deterministic: ``rotations`` evenly spread angles, and per angle the ``walkers_per_angle``
+  best (lowest Delta) of a few start positions for the moving map's centroid (the
+  reference's centroid, its own position, a ``start_grid x start_grid`` lattice over the
+  reference's known cells).
+- The stopping rule (a walker stops after ``patience`` steps that did not improve its best
+  Delta by more than ``tolerance``, or after ``max_iterations``), the step sizes and the
+  default ``c_lock`` are our choices, tuned on the maps in ``tests/data``: the numerical
+  values of the original implementation were not available to us. The default
+  ``c_lock = lock_weight / N`` (``N`` known moving cells) makes a perfect full overlap worth
+  ``lock_weight`` cells of picture distance whatever the map size.
+- Subsampling (ours): when a map has more than ``max_points`` occupied (or free) cells, an
+  evenly spaced subset of them (row-major order, independent of the seed) takes part, and
+  ``agr``/``dis`` are scaled back to cells.
+
+Known limitation (of the method, not the implementation): when the moving map holds several
+partitions, ``Psi`` averages over all of them, so the minimum of Delta can sit a fraction of
+a degree away from the best transform of the largest partition; the recursion refines the
+chosen candidate anyway.
 
 Cost of one evaluation: the distance maps of the reference are computed once by
 :meth:`RandomWalkRegistrar.prepare_reference`, those of the moving map once per
@@ -291,6 +307,8 @@ class RandomWalkRegistrar:
     """
 
     name = "random-walk"
+    #: Delta uses free cells too, so the recursion should pass them (see measure/recursion).
+    uses_free_space = True
 
     def __init__(
         self,
