@@ -22,6 +22,9 @@ from .distance import lookup_distance, manhattan_distance_map
 
 __all__ = ["ReferenceIndex", "cell_points", "manhattan_ball", "unmatched_reference"]
 
+#: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
+_LOOKUP_TABLE_CELLS = 4_000_000
+
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
     """``(x, y) = (column, row)`` coordinates of the ``True`` cells, shape (N, 2), row-major."""
@@ -42,14 +45,11 @@ class ReferenceIndex:
         The same for free cells (computed on first use).
     occupied_points : ndarray, shape (N, 2)
         Coordinates of the occupied reference cells.
-    tree : scipy.spatial.cKDTree
-        Nearest-neighbour index of ``occupied_points`` (Euclidean), for refinement.
     """
 
     reference: OccupancyMap
     occupied_distance: NDArray[np.float32]
     occupied_points: NDArray[np.float64]
-    tree: cKDTree
 
     @classmethod
     def build(cls, reference: OccupancyMap) -> ReferenceIndex:
@@ -68,25 +68,58 @@ class ReferenceIndex:
             reference=reference,
             occupied_distance=manhattan_distance_map(occupied),
             occupied_points=points,
-            tree=cKDTree(points),
         )
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        """Nearest-neighbour index of ``occupied_points`` (Euclidean)."""
+        return cKDTree(self.occupied_points)
 
     @cached_property
     def nearest_occupied(self) -> NDArray[np.int32]:
         """Per cell, the row of ``occupied_points`` nearest to it (Euclidean, exact).
 
         One linear-time pass (OpenCV's labelled distance transform), so that nearest-point
-        queries during refinement are array lookups instead of tree searches.
+        queries are array lookups instead of tree searches.
         """
-        occupied = self.reference.occupied
         _, labels = cv2.distanceTransformWithLabels(
-            np.where(occupied, 0, 1).astype(np.uint8),
+            np.where(self.reference.occupied, 0, 1).astype(np.uint8),
             cv2.DIST_L2,
             cv2.DIST_MASK_PRECISE,
             labelType=cv2.DIST_LABEL_PIXEL,
         )
         # labels number the zero pixels 1..N in row-major order, as cell_points lists them
         return (labels - 1).astype(np.int32)
+
+    def nearest_points(self, points: ArrayLike, max_distance: float) -> NDArray[np.float64]:
+        """The occupied reference cell nearest to each point (``inf`` rows beyond reach).
+
+        Small references answer from a per-cell lookup table (:attr:`nearest_occupied`, one
+        labelled distance transform); large ones, where that table costs more to build than
+        the queries of a whole computation, from a KD-tree (:attr:`tree`).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 2)
+            Query points ``(x, y)``.
+        max_distance : float
+            Points farther than this from every occupied cell get ``inf`` coordinates.
+        """
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        out = np.full(p.shape, np.inf)
+        if self.reference.states.size > _LOOKUP_TABLE_CELLS:
+            dist, idx = self.tree.query(p, k=1, distance_upper_bound=max_distance)
+            found = np.isfinite(dist)
+            out[found] = self.occupied_points[idx[found]]
+            return out
+        h, w = self.reference.shape
+        cols = np.rint(p[:, 0])
+        rows = np.rint(p[:, 1])
+        inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+        idx = self.nearest_occupied[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
+        out[inside] = self.occupied_points[idx]
+        out[np.linalg.norm(out - p, axis=1) > max_distance] = np.inf
+        return out
 
     @cached_property
     def free_distance(self) -> NDArray[np.float32]:

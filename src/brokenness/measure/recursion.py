@@ -433,17 +433,11 @@ def _best_candidate(
         if not agree.any():
             continue
         swept = sweep_rotation(cand.transform, sample, soft, moved[agree].mean(axis=0))
-        refined = refine_transform(
-            swept,
-            sample,
-            index.occupied_points,
-            index.nearest_occupied,
-            gate=threshold + 1.0,
-        )
+        fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
         polished = polish_transform(
-            refined, sample[hard(refined.apply(sample))], index.occupied_distance, threshold
+            fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
         )
-        for option in (polished, refined, swept, cand.transform):
+        for option in (polished, fitted, swept, cand.transform):
             value = soft(option.apply(sample))
             if value > best_score:
                 best_score = value

@@ -1,11 +1,13 @@
-"""Local refinement of a registration: iterative closest points on the occupied cells.
+"""Local refinement of a registration on the measure itself.
 
-Spectral registration is accurate to a fraction of a degree; far from the rotation centre
-that can still be more than the masking threshold. A few ICP iterations against the
-reference's occupied cells, with a shrinking correspondence gate, remove that residual
-before the map is masked. Each iteration is an array lookup of the nearest reference cell (a
-labelled distance transform computed once per reference) and a closed-form 2D Procrustes fit
-(no Python loop over cells).
+The registration's hypotheses are already refined on the reference's distance map; what is
+left is a residual of a fraction of a cell or degree, which far from the rotation centre can
+still push cells over the masking threshold, and the angle of a small or elongated part can
+be off by a degree or two. :func:`sweep_rotation` tries a fan of rotations about the agreeing
+cells, :func:`refine_transform` (trimmed ICP) pulls the cells onto their nearest reference
+walls, and :func:`polish_transform` climbs a smoothed
+count of agreeing cells (:func:`soft_agreement`) by a compass search: each evaluation is one
+vectorised bilinear lookup of the Manhattan distance map (no Python loop over cells).
 """
 
 from __future__ import annotations
@@ -26,6 +28,18 @@ __all__ = [
     "soft_agreement",
     "sweep_rotation",
 ]
+
+
+def _turn_about(
+    pivot: NDArray[np.float64], angle: float, dx: float = 0.0, dy: float = 0.0
+) -> RigidTransform:
+    """Rotation by ``angle`` about ``pivot``, followed by a shift ``(dx, dy)``."""
+    c, s = math.cos(angle), math.sin(angle)
+    return RigidTransform(
+        angle,
+        pivot[0] - (c * pivot[0] - s * pivot[1]) + dx,
+        pivot[1] - (s * pivot[0] + c * pivot[1]) + dy,
+    )
 
 
 def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> RigidTransform:
@@ -49,22 +63,19 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
     dot = float(np.sum(s[:, 0] * t[:, 0] + s[:, 1] * t[:, 1]))
     angle = math.atan2(cross, dot)
     c, si = math.cos(angle), math.sin(angle)
-    tx = ct[0] - (c * cs[0] - si * cs[1])
-    ty = ct[1] - (si * cs[0] + c * cs[1])
-    return RigidTransform(angle, tx, ty)
+    return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
 
 
 def refine_transform(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    reference_points: NDArray[np.float64],
-    nearest: NDArray[np.int32],
+    nearest: Callable[[NDArray[np.float64], float], NDArray[np.float64]],
     *,
     gate: float,
     iterations: int = 20,
     max_points: int = 2000,
 ) -> RigidTransform:
-    """Refine ``transform`` so that ``points`` land closer to the occupied reference cells.
+    """Trimmed ICP: move ``points`` closer to their nearest occupied reference cells.
 
     Parameters
     ----------
@@ -72,15 +83,14 @@ def refine_transform(
         Starting estimate, map cells -> reference cells (scale 1).
     points : ndarray, shape (N, 2)
         Occupied map cells to align (others' cells may be among them: the gate rejects them).
-    reference_points : ndarray, shape (M, 2)
-        Occupied reference cells.
-    nearest : ndarray of int32, 2D
-        Per reference cell, the row of ``reference_points`` nearest to it
-        (:attr:`brokenness.masking.ReferenceIndex.nearest_occupied`).
+    nearest : callable
+        ``nearest(moved, gate)`` -> the nearest occupied reference cell of each moved point,
+        ``inf`` where none is within ``gate``
+        (:meth:`brokenness.masking.ReferenceIndex.nearest_points`).
     gate : float
-        Correspondences farther than this (cells) are ignored (trimmed ICP).
+        Correspondences farther than this (cells) are ignored.
     iterations : int
-        Largest number of ICP iterations (it stops earlier once the steps vanish).
+        Largest number of iterations (it stops earlier once the steps vanish).
     max_points : int
         At most this many points take part, picked by a fixed stride (deterministic).
 
@@ -90,19 +100,12 @@ def refine_transform(
         The refined transform, or ``transform`` itself if too few correspondences were found.
     """
     if points.shape[0] > max_points:
-        stride = int(math.ceil(points.shape[0] / max_points))
-        points = points[::stride]
-    h, w = nearest.shape
+        points = points[:: int(math.ceil(points.shape[0] / max_points))]
     current = transform
     for _ in range(iterations):
         moved = current.apply(points)
-        cols = np.rint(moved[:, 0])
-        rows = np.rint(moved[:, 1])
-        inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-        matched = np.full(moved.shape, np.inf)
-        idx = nearest[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
-        matched[inside] = reference_points[idx]
-        inliers = np.linalg.norm(moved - matched, axis=1) <= gate
+        matched = nearest(moved, gate)
+        inliers = np.isfinite(matched[:, 0])
         if np.count_nonzero(inliers) < 3:
             break
         step = fit_rigid(moved[inliers], matched[inliers])
@@ -123,11 +126,10 @@ def sweep_rotation(
 ) -> RigidTransform:
     """Best rotation near ``transform``, turning the moved points about ``pivot``.
 
-    A spectral rotation estimate from a *mixture* of partitions can be off by a degree or
-    two; far from the centre that moves cells by more than the masking threshold, and ICP
-    may then settle in a neighbouring minimum. Trying a fan of small rotations about the
-    cells that already agree, and keeping the best-scoring one, puts ICP into the right
-    basin. Each try is one vectorised lookup.
+    The spectral rotation estimate of a small or elongated part (a corridor, say) can be off
+    by a degree or two, and far from the centre that is more than the masking threshold and
+    more than a local search recovers. Trying a fan of small rotations about the cells that
+    already agree, and keeping the best-scoring one, puts the polish into the right basin.
 
     Parameters
     ----------
@@ -152,18 +154,6 @@ def sweep_rotation(
         if value > best_score:
             best, best_score = candidate, value
     return best
-
-
-def _turn_about(
-    pivot: NDArray[np.float64], angle: float, dx: float = 0.0, dy: float = 0.0
-) -> RigidTransform:
-    """Rotation by ``angle`` about ``pivot``, followed by a shift ``(dx, dy)``."""
-    c, s = math.cos(angle), math.sin(angle)
-    return RigidTransform(
-        angle,
-        pivot[0] - (c * pivot[0] - s * pivot[1]) + dx,
-        pivot[1] - (s * pivot[0] + c * pivot[1]) + dy,
-    )
 
 
 def soft_agreement(
