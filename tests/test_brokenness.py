@@ -236,3 +236,18 @@ def test_accepts_paths_and_arrays(maps):
     by_array = compute_brokenness(ref.occupied, ref.occupied)
     assert by_path.degree == 0 and by_array.degree == 0
     assert math.isclose(by_path.partitions[0].fraction, 1.0)
+
+
+@pytest.mark.parametrize("name", ["building_31.yaml", "tb3_sandbox.yaml"])
+def test_broken_and_noisy_map_keeps_its_degree(maps, name):
+    """Noise on top of a structural error neither hides it nor adds partitions."""
+    ref = maps[name]
+    h, w = ref.shape
+    motions = [RigidTransform(), move_about((0.8 * w, h / 2), -15.0, (4.0, 3.0))]
+    broken, truths = break_map(ref, strips(ref.shape, [0.6]), motions, pad=w // 6)
+    noisy = _jitter(_salt_and_pepper(broken, 0.005, 11), 12)
+    result = compute_brokenness(noisy, ref)
+    assert result.degree == 1
+    pairs = _match(result, truths)
+    assert sorted(j for j, _ in pairs) == [0, 1]
+    assert all(err < 2.0 for _, err in pairs), pairs

@@ -50,10 +50,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, ParameterError
-from ..grid import FREE, UNKNOWN, OccupancyMap
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
 from ..masking.distance import lookup_distance
-from ..registration.base import Registrar
+from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
 from .refine import polish_transform, refine_transform, soft_agreement, sweep_rotation
@@ -67,6 +67,11 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 _REFINED_CANDIDATES = 2
 #: At most this many cells (an even stride of them) score the hypotheses of a step.
 _SAMPLE_CELLS = 4000
+#: A reference with at most this share of isolated occupied cells has connected walls.
+_ISOLATED_SHARE = 0.05
+#: iFMI options of the recursion, under the user's: a remainder mixes partitions, so more
+#: rotation peaks are worth examining than for a single registration.
+_IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3}
 
 
 @dataclass(frozen=True)
@@ -140,7 +145,7 @@ def compute_brokenness(
     significance: float = 6.0,
     merge_threshold: float | None = None,
     max_partitions: int = 16,
-    max_candidates: int = 4,
+    max_candidates: int = 6,
     seed: int | None = None,
     registration_options: dict[str, Any] | None = None,
 ) -> BrokennessResult:
@@ -181,11 +186,13 @@ def compute_brokenness(
     max_partitions : int
         Upper bound on the number of partitions (default 16): the recursion always ends.
     max_candidates : int
-        Registration hypotheses examined per step (default 4).
+        Registration hypotheses examined per step (default 6).
     seed : int, optional
         Seed of the random-walk registration (iFMI uses no randomness).
     registration_options : dict, optional
-        Keyword options of the registration method (see :func:`brokenness.register`).
+        Keyword options of the registration method (see :func:`brokenness.register`). For
+        iFMI the recursion defaults to ``rotation_peaks=3, peak_ratio=0.3`` (a remainder mixes
+        partitions, so its angle spectrum has more than one peak worth trying).
 
     Returns
     -------
@@ -233,7 +240,9 @@ def compute_brokenness(
     index = ReferenceIndex.build(ref)  # raises for an empty reference
 
     working, to_working = _common_resolution(original, ref)
-    registrar = make_registrar(method, seed=seed, **(registration_options or {}))
+    options = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
+    options.update(registration_options or {})
+    registrar = make_registrar(method, seed=seed, **options)
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
     n_total = points.shape[0]
@@ -326,20 +335,35 @@ def _recurse(
     reference_occupied = index.reference.occupied
     p0 = index.chance_agreement(threshold)
     uses_free = bool(getattr(registrar, "uses_free_space", True))
+    # If the reference's walls are connected lines (few isolated occupied cells), isolated
+    # cells of the map are noise and are hidden from the registration; if the reference
+    # itself is dotted (a sparse probabilistic map), they are structure and stay.
+    ref_occ = index.reference.occupied
+    walls_connected = np.count_nonzero(_isolated(ref_occ)) <= _ISOLATED_SHARE * np.count_nonzero(
+        ref_occ
+    )
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[_Found] = []
+    carried: list[Candidate] = []
     steps = 0
     while np.count_nonzero(remaining) >= min_cells and len(found) < max_partitions:
         steps += 1
         if steps > 2 * max_partitions:  # merges do not count; bound them too
             break
         t0 = time.perf_counter()
-        moving_states = _remainder_states(working, rows, cols, remaining, uses_free)
+        moving_states = _remainder_states(
+            working, rows, cols, remaining, uses_free, walls_connected
+        )
+        if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
+            break  # what is left is scattered noise: nothing to register
         reference_states = _reference_states(index.reference, reference_occupied, uses_free)
         prepared = registrar.prepare_reference(reference_states)
-        candidates = registrar.candidates(prepared, moving_states, max_candidates)
+        fresh = registrar.candidates(prepared, moving_states, max_candidates)
+        # The hypotheses of the previous step stay in the running: a part seen there, beside
+        # the larger one that won, is often registered better than from what is left alone.
         left = np.flatnonzero(remaining)
-        best = _best_candidate(candidates, points[left], index, threshold)
+        best = _best_candidate([*fresh, *carried], points[left], index, threshold)
+        carried = fresh
         if best is None:
             break
         transform, agree, _confidence = best
@@ -373,15 +397,35 @@ def _remainder_states(
     cols: NDArray[np.intp],
     remaining: NDArray[np.bool_],
     uses_free: bool,
+    drop_isolated: bool,
 ) -> NDArray[np.int8]:
-    """The map T of the recursion: masked occupied cells (and their free space) withdrawn."""
+    """The map T of the recursion, as the registration sees it.
+
+    Masked occupied cells (and, for methods that use it, their free space) are withdrawn.
+    With ``drop_isolated``, so are *isolated* occupied cells (no other occupied cell within
+    two cells): salt-and-pepper noise, whose flat spectrum would drown the walls of a small
+    remainder. They are hidden from the registration only; the masking still counts them.
+    """
     withdrawn = np.zeros(working.shape, dtype=bool)
     withdrawn[rows[~remaining], cols[~remaining]] = True
-    if not uses_free:
-        out = working.states.copy()
-        out[withdrawn] = UNKNOWN
-        return out
-    return _withdraw(working.states, withdrawn, working.occupied & ~withdrawn)
+    left = working.occupied & ~withdrawn
+    out = working.states.copy() if not uses_free else _withdraw(working.states, withdrawn, left)
+    out[withdrawn] = UNKNOWN
+    if drop_isolated:
+        out[left & _isolated(left)] = UNKNOWN
+    return out
+
+
+def _isolated(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Occupied cells with no other occupied cell in their 5x5 neighbourhood."""
+    count = cv2.boxFilter(
+        occupied.astype(np.uint8),
+        cv2.CV_16U,
+        (5, 5),
+        normalize=False,
+        borderType=cv2.BORDER_CONSTANT,
+    )
+    return occupied & (count == 1)
 
 
 def _reference_states(
