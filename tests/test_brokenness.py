@@ -238,9 +238,13 @@ def test_accepts_paths_and_arrays(maps):
     assert math.isclose(by_path.partitions[0].fraction, 1.0)
 
 
-@pytest.mark.parametrize("name", ["building_31.yaml", "tb3_sandbox.yaml"])
+@pytest.mark.parametrize("name", ["building_31.yaml", "depot.yaml"])
 def test_broken_and_noisy_map_keeps_its_degree(maps, name):
-    """Noise on top of a structural error neither hides it nor adds partitions."""
+    """Noise on top of a structural error neither hides it nor adds partitions.
+
+    (Not on tb3_sandbox: its hexagonal arena is symmetric, and a 125-cell part of it under
+    this much noise fits more than one place.)
+    """
     ref = maps[name]
     h, w = ref.shape
     motions = [RigidTransform(), move_about((0.8 * w, h / 2), -15.0, (4.0, 3.0))]
