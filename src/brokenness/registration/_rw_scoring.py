@@ -132,7 +132,7 @@ def _lookup(
     """
     coords = matrix @ points
     w = matrix.shape[0] // 2
-    return cv2.remap(
+    values = cv2.remap(
         tables.tables[kind_index],
         coords[:w],
         coords[w:],
@@ -140,6 +140,7 @@ def _lookup(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=UNKNOWN_VALUE,
     )
+    return np.asarray(values, dtype=np.uint16)  # a no-op: remap keeps the table's type
 
 
 @dataclass(frozen=True)

@@ -446,7 +446,7 @@ class _WalkResult:
 
 def _transform_arrays(
     states: NDArray[np.float64], pivot: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], ...]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """(cos, sin, tx, ty) of ``x -> R(theta) (x - pivot) + u`` for states ``(theta, ux, uy)``."""
     c = np.cos(states[:, 0])
     s = np.sin(states[:, 0])
@@ -493,7 +493,7 @@ def _walk(reg: RandomWalkRegistrar, prepared: _PreparedReference, moving: MapTab
     while active.any() and steps < reg.max_iterations:
         steps += 1
         z = rng.standard_normal((n_walkers, 3))
-        u = rng.random(n_walkers)
+        u = rng.random((n_walkers,))
         idx = np.flatnonzero(active)
         step = mean[idx] + np.einsum("wij,wj->wi", chol[idx], z[idx])
         proposal = state[idx] + step
