@@ -246,18 +246,20 @@ def compute_brokenness(
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
     n_total = points.shape[0]
+    min_cells = max(min_partition_cells, math.ceil(min_partition_fraction * n_total))
     found = _recurse(
         working,
         points,
         index,
         registrar,
         threshold=threshold,
-        min_cells=max(min_partition_cells, math.ceil(min_partition_fraction * n_total)),
+        min_cells=min_cells,
         significance=significance,
         merge_threshold=merge_threshold,
         max_partitions=max_partitions,
         max_candidates=max_candidates,
     )
+    found = _reassign(found, points, index, threshold, min_cells)
     partitions, labels_working = _assemble(found, points, working, to_working, original, ref, index)
     labels = _labels_in_original_grid(labels_working, working, to_working, original)
     n_occupied = original.n_occupied
@@ -521,14 +523,74 @@ def _with_fringe(
 def _merge_target(
     found: list[_Found], pts: NDArray[np.float64], index: ReferenceIndex, merge_threshold: float
 ) -> int | None:
-    """Index of the earlier partition whose transform loosely explains ``pts``, if any."""
-    best, best_share = None, 0.5
+    """Index of the earlier partition whose transform loosely explains ``pts``, if any.
+
+    Under that transform, at least half of the cells that chance would not put within
+    ``merge_threshold`` of a reference wall must land there: ``(share - q) / (1 - q) >= 0.5``
+    with ``q`` the chance agreement at ``merge_threshold`` (in a dense map a loose threshold
+    is met by many cells of a part that is really off).
+    """
+    q = index.chance_agreement(merge_threshold)
+    best, best_excess = None, 0.5
     for i, f in enumerate(found):
         d = lookup_distance(index.occupied_distance, f.transform.apply(pts))
         share = float(np.count_nonzero(d <= merge_threshold)) / max(pts.shape[0], 1)
-        if share >= best_share:
-            best, best_share = i, share
+        excess = (share - q) / (1.0 - q) if q < 1.0 else 0.0
+        if excess >= best_excess:
+            best, best_excess = i, excess
     return best
+
+
+def _reassign(
+    found: list[_Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    min_cells: int,
+) -> list[_Found]:
+    """Give each cell to the partition under whose transform it agrees *best*.
+
+    The recursion is greedy: the first partition takes every cell that agrees with the
+    reference under its transform, including cells of other parts that land near a wall by
+    coincidence (common in maps of many similar rooms). Once all transforms are known, each
+    agreeing cell goes to the partition that puts it closest to a reference wall; ties keep
+    the greedy choice when it is among them, else the larger partition. Cells that agree under
+    no transform stay unassigned. A partition left with fewer than ``min_cells`` cells is
+    dropped and the assignment repeated without it.
+    """
+    if len(found) < 2:
+        return found
+    owner = np.full(points.shape[0], -1, dtype=np.intp)
+    for j, f in enumerate(found):
+        owner[f.members] = j
+    kept = list(range(len(found)))
+    while True:
+        distances = np.stack(
+            [
+                lookup_distance(index.occupied_distance, found[j].transform.apply(points))
+                for j in kept
+            ]
+        )
+        best = distances.min(axis=0)
+        tied = distances == best
+        greedy = np.array([owner == j for j in kept])
+        # the greedy owner if it is among the best, else the first (largest-found) best
+        choice = np.where(
+            (tied & greedy).any(axis=0), np.argmax(tied & greedy, axis=0), np.argmax(tied, axis=0)
+        )
+        assigned = np.where(best <= threshold, np.asarray(kept)[choice], -1)
+        sizes = {j: int(np.count_nonzero(assigned == j)) for j in kept}
+        small = [j for j in kept if sizes[j] < min_cells]
+        if not small or len(kept) == 1:
+            break
+        kept = [j for j in kept if j not in small]
+    return [
+        _Found(
+            found[j].transform, np.flatnonzero(assigned == j), found[j].confidence, found[j].seconds
+        )
+        for j in kept
+        if sizes[j] > 0
+    ]
 
 
 def _assemble(
