@@ -114,6 +114,8 @@ class RigidTransform:
         scale = math.hypot(a, c)
         if scale <= 0 or not np.allclose([a, b], [d, -c], atol=1e-9 * max(1.0, scale)):
             raise ValueError("matrix is not a rotation with a uniform positive scale")
+        if abs(scale - 1.0) < 1e-9:  # round-off of products of rotations
+            scale = 1.0
         return cls(math.atan2(c, a), tx, ty, scale)
 
     def apply(self, points: ArrayLike) -> NDArray[np.float64]:

@@ -463,11 +463,15 @@ def _best_candidate(
 
     # Hypotheses are scored on an evenly strided sample of the cells (deterministic).
     sample = points[:: max(1, -(-points.shape[0] // _SAMPLE_CELLS))]
-    raw = [
-        (soft(c.transform.apply(sample)), i, c)
-        for i, c in enumerate(candidates)
-        if c.transform.scale == 1.0
+    # Rigid hypotheses only (a registration's matrix algebra may leave the scale at 1 +- 1e-15).
+    rigid = [
+        Candidate(
+            RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty), c.confidence
+        )
+        for c in candidates
+        if abs(c.transform.scale - 1.0) < 1e-6
     ]
+    raw = [(soft(c.transform.apply(sample)), i, c) for i, c in enumerate(rigid)]
     raw.sort(key=lambda item: (-item[0], item[1]))
     best: tuple[RigidTransform, float] | None = None
     best_score = -1.0
