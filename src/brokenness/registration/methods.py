@@ -39,4 +39,6 @@ def make_registrar(method: str = "ifmi", *, seed: int | None = None, **options: 
         from .random_walk import RandomWalkRegistrar
 
         return RandomWalkRegistrar(seed=seed, **options)
-    raise ParameterError(f"unknown registration method {method!r}; choose one of {', '.join(METHODS)}")
+    raise ParameterError(
+        f"unknown registration method {method!r}; choose one of {', '.join(METHODS)}"
+    )
