@@ -1,0 +1,281 @@
+"""Batch manifests: the list of map/reference pairs to evaluate, with labels.
+
+A manifest is a CSV or YAML file. Every pair has a ``map`` and a ``reference`` path
+(relative paths are relative to the manifest's folder) and optional labels such as
+``system``, ``dataset``, ``noise``, ``seed``: free-form columns that the summary tables and
+``brokenness compare`` group by. Two label columns also set options of
+:func:`brokenness.compute_brokenness` for their pair: ``method`` and ``seed``.
+
+CSV::
+
+    map,reference,system,noise,seed
+    runs/gmapping_0.1_1.pgm,ref/office.yaml,gmapping,0.1,1
+
+YAML (a list of pairs, or a mapping with ``pairs``, optional ``defaults`` applied to every
+pair and optional ``options`` passed to :func:`brokenness.compute_brokenness`)::
+
+    defaults: {reference: ref/office.yaml, dataset: office}
+    options: {threshold: 2}
+    pairs:
+      - {map: runs/gmapping_0.1_1.pgm, system: gmapping, noise: 0.1, seed: 1}
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import BrokennessError
+
+__all__ = ["COMPUTE_LABELS", "Manifest", "ManifestError", "Pair", "pairs_of", "read_manifest"]
+
+#: Label columns that are also passed to :func:`brokenness.compute_brokenness`.
+COMPUTE_LABELS: tuple[str, ...] = ("method", "seed")
+_PATH_COLUMNS = ("map", "reference")
+
+
+class ManifestError(BrokennessError, ValueError):
+    """A manifest cannot be read: missing, wrong format, missing columns, bad rows."""
+
+
+@dataclass(frozen=True)
+class Pair:
+    """One map/reference pair of a manifest.
+
+    Attributes
+    ----------
+    map, reference : Path
+        Absolute paths (resolved against the manifest's folder).
+    map_text, reference_text : str
+        The paths as written in the manifest (they make the stable :attr:`id`).
+    labels : dict of str to str
+        Every other column, in manifest order (empty values dropped).
+    row : int
+        1-based position of the pair in the manifest (for messages).
+    """
+
+    map: Path
+    reference: Path
+    map_text: str
+    reference_text: str
+    labels: dict[str, str] = field(default_factory=dict, hash=False)
+    row: int = 0
+
+    @property
+    def id(self) -> str:
+        """Stable 12-hex-digit identifier from the paths as written and the labels."""
+        key = json.dumps(
+            {"map": self.map_text, "reference": self.reference_text, "labels": self.labels},
+            sort_keys=True,
+        )
+        return hashlib.sha256(key.encode()).hexdigest()[:12]
+
+    @property
+    def stem(self) -> str:
+        """File name stem of this pair's outputs: readable map name plus :attr:`id`."""
+        name = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(self.map_text).stem).strip("._")[:40]
+        return f"{name or 'map'}-{self.id}"
+
+    @property
+    def result_name(self) -> str:
+        """File name of this pair's result zip."""
+        return f"{self.stem}.zip"
+
+    def compute_options(self) -> dict[str, Any]:
+        """Options of :func:`brokenness.compute_brokenness` set by this pair's labels.
+
+        Raises
+        ------
+        ManifestError
+            If ``seed`` is not an integer.
+        """
+        out: dict[str, Any] = {}
+        if "method" in self.labels:
+            out["method"] = self.labels["method"]
+        if "seed" in self.labels:
+            try:
+                out["seed"] = int(self.labels["seed"])
+            except ValueError:
+                raise ManifestError(
+                    f"row {self.row}: seed must be an integer, got {self.labels['seed']!r}"
+                ) from None
+        return out
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """The pairs of a manifest and the options shared by all of them.
+
+    Attributes
+    ----------
+    pairs : tuple of Pair
+    options : dict
+        Keyword options for :func:`brokenness.compute_brokenness` (YAML ``options``).
+    path : Path or None
+        The manifest file.
+    """
+
+    pairs: tuple[Pair, ...]
+    options: dict[str, Any] = field(default_factory=dict, hash=False)
+    path: Path | None = None
+
+    @property
+    def label_names(self) -> list[str]:
+        """Every label name used by some pair, in first-seen order."""
+        names: dict[str, None] = {}
+        for p in self.pairs:
+            names.update(dict.fromkeys(p.labels))
+        return list(names)
+
+
+def _text(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value).strip()
+
+
+def _make_pair(entry: Mapping[str, Any], row: int, base: Path, where: str) -> Pair:
+    values = {str(k).strip(): _text(v) for k, v in entry.items() if k is not None}
+    for col in _PATH_COLUMNS:
+        if not values.get(col):
+            raise ManifestError(f"{where} row {row}: no {col!r} path")
+    labels = {k: v for k, v in values.items() if k not in _PATH_COLUMNS and v != ""}
+    for k in labels:
+        if not k:
+            raise ManifestError(f"{where} row {row}: a column has no name")
+    paths = [Path(os.path.expanduser(values[c])) for c in _PATH_COLUMNS]
+    resolved = [p if p.is_absolute() else (base / p) for p in paths]
+    return Pair(
+        map=resolved[0].resolve(),
+        reference=resolved[1].resolve(),
+        map_text=values["map"],
+        reference_text=values["reference"],
+        labels=labels,
+        row=row,
+    )
+
+
+def _read_csv(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise ManifestError(f"{path}: not a text file") from None
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise ManifestError(f"{path}: empty manifest")
+    reader = csv.DictReader(lines)
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    missing = [c for c in _PATH_COLUMNS if c not in header]
+    if missing:
+        raise ManifestError(
+            f"{path}: the header must name the columns 'map' and 'reference' "
+            f"(missing {', '.join(repr(m) for m in missing)}; header is {','.join(header)})"
+        )
+    if len(set(header)) != len(header):
+        raise ManifestError(f"{path}: duplicate column names in the header")
+    rows = []
+    for i, raw in enumerate(reader, start=1):
+        if None in raw:
+            raise ManifestError(f"{path} row {i}: more values than columns")
+        rows.append({k.strip(): v for k, v in raw.items()})
+    return rows, {}
+
+
+def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ManifestError(f"{path}: not valid YAML ({first})") from None
+    options: dict[str, Any] = {}
+    defaults: dict[str, Any] = {}
+    if isinstance(doc, Mapping):
+        unknown = set(doc) - {"pairs", "defaults", "options"}
+        if unknown:
+            raise ManifestError(
+                f"{path}: unknown top-level key(s) {sorted(map(str, unknown))}; "
+                "expected pairs, defaults, options"
+            )
+        entries = doc.get("pairs")
+        defaults = doc.get("defaults") or {}
+        options = doc.get("options") or {}
+        if not isinstance(defaults, Mapping) or not isinstance(options, Mapping):
+            raise ManifestError(f"{path}: 'defaults' and 'options' must be mappings")
+    else:
+        entries = doc
+    if not isinstance(entries, list):
+        raise ManifestError(f"{path}: expected a list of pairs (each with map and reference)")
+    rows = []
+    for i, entry in enumerate(entries, start=1):
+        if not isinstance(entry, Mapping):
+            raise ManifestError(f"{path} row {i}: a pair must be a mapping, got {entry!r}")
+        rows.append({**defaults, **entry})
+    return rows, dict(options)
+
+
+def read_manifest(path: str | os.PathLike[str]) -> Manifest:
+    """Read a CSV (``.csv``/``.tsv``) or YAML (``.yaml``/``.yml``) manifest.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    Manifest
+
+    Raises
+    ------
+    ManifestError
+        If the file is missing, of an unknown kind, has no ``map``/``reference`` columns,
+        has a row without them, no pairs, or the same pair twice.
+
+    Examples
+    --------
+    >>> m = read_manifest("runs.csv")  # doctest: +SKIP
+    >>> [p.labels["system"] for p in m.pairs]  # doctest: +SKIP
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ManifestError(f"{p}: no such manifest file")
+    suffix = p.suffix.lower()
+    if suffix == ".csv":
+        rows, options = _read_csv(p)
+    elif suffix in (".yaml", ".yml"):
+        rows, options = _read_yaml(p)
+    else:
+        raise ManifestError(f"{p}: a manifest must be .csv, .yaml or .yml")
+    base = p.resolve().parent
+    pairs = tuple(_make_pair(r, i, base, str(p)) for i, r in enumerate(rows, start=1))
+    if not pairs:
+        raise ManifestError(f"{p}: the manifest lists no pairs")
+    seen: dict[str, int] = {}
+    for pair in pairs:
+        pair.compute_options()  # validate seeds early
+        if pair.id in seen:
+            raise ManifestError(
+                f"{p}: rows {seen[pair.id]} and {pair.row} are the same pair "
+                "(same paths and labels)"
+            )
+        seen[pair.id] = pair.row
+    return Manifest(pairs, options, p)
+
+
+def pairs_of(manifest: Manifest | str | os.PathLike[str] | Sequence[Pair]) -> Manifest:
+    """A :class:`Manifest` from a manifest, a path or a sequence of pairs."""
+    if isinstance(manifest, Manifest):
+        return manifest
+    if isinstance(manifest, (str, os.PathLike)):
+        return read_manifest(manifest)
+    return Manifest(tuple(manifest))

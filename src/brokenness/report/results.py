@@ -1,0 +1,377 @@
+"""Result files: one self-contained zip per evaluated map, readable without the inputs.
+
+Like the result files of ``evo``, a record can be compared and plotted later
+(``brokenness compare``) long after the maps are gone. Members of the zip:
+
+``info.json``
+    Package version, method, parameters, input paths with their SHA-256 checksums, timings,
+    creation date and any extra information of the caller (labels of a batch run...).
+``stats.json``
+    Deterministic figures: :meth:`BrokennessResult.to_dict` plus, per partition, the
+    transform in cells and metres, translation norms and the transform relative to the
+    largest partition; the unassigned cells; Psi of the map and of the repaired map against
+    the reference; shapes and geometry of both maps.
+``labels.npy``
+    The partition label image (int16, the map's grid; -1 not occupied, -2 unassigned).
+``overlay.png``
+    The partition overlay (:func:`brokenness.report.render_overlay`).
+
+Writes are atomic: the zip is written to a temporary file in the destination folder and
+renamed over the destination with :func:`os.replace` only when complete, so an exception, a
+crash or Ctrl-C never leaves a half-written file behind.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import io
+import json
+import math
+import os
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import __version__
+from ..errors import BrokennessError
+from ..grid import OccupancyMap
+from ..measure.result import BrokennessResult
+from ..transform import RigidTransform
+from .overlay import render_overlay
+from .repair import Repair, repair
+
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "ResultFileError",
+    "ResultRecord",
+    "atomic_write",
+    "build_stats",
+    "file_sha256",
+    "load_results",
+    "save_results",
+]
+
+FORMAT_NAME = "brokenness-results"
+FORMAT_VERSION = 1
+_MEMBERS = ("info.json", "stats.json", "labels.npy", "overlay.png")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed member dates: same content -> same bytes
+
+
+class ResultFileError(BrokennessError, ValueError):
+    """A result file is missing, not a zip, or lacks one of its members."""
+
+
+@dataclass(frozen=True, eq=False)
+class ResultRecord:
+    """A result file as read back by :func:`load_results` (no inputs needed).
+
+    Attributes
+    ----------
+    info : dict
+        Content of ``info.json`` (version, parameters, inputs, timings, labels...).
+    stats : dict
+        Content of ``stats.json`` (degree, partitions, Psi...).
+    labels : ndarray of int16
+        The partition label image in the map's grid.
+    overlay_png : bytes
+        The overlay picture.
+    path : Path or None
+        Where the record was read from or written to.
+    """
+
+    info: dict[str, Any]
+    stats: dict[str, Any]
+    labels: NDArray[np.int16]
+    overlay_png: bytes
+    path: Path | None = None
+
+    @property
+    def degree(self) -> int:
+        """Degree of brokenness."""
+        return int(self.stats["degree"])
+
+    @property
+    def run_labels(self) -> dict[str, str]:
+        """Labels of the run (system, dataset, noise...), empty when none were given."""
+        return dict(self.info.get("labels") or {})
+
+
+# -- helpers ----------------------------------------------------------------------------------
+def file_sha256(path: str | os.PathLike[str]) -> str | None:
+    """SHA-256 hex digest of a file, or ``None`` when ``path`` is not a regular file."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    digest = hashlib.sha256()
+    with p.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON types; non-finite floats become ``None``, unknown objects their ``str``."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return str(value)
+
+
+def _dumps(obj: Any) -> bytes:
+    return (json.dumps(_jsonable(obj), indent=2, sort_keys=True, allow_nan=False) + "\n").encode()
+
+
+def _geometry(m: OccupancyMap) -> dict[str, Any]:
+    rows, cols = m.shape
+    return {
+        "rows": rows,
+        "cols": cols,
+        "resolution": m.resolution,
+        "origin": list(m.origin) if m.origin is not None else None,
+        "occupied_cells": m.n_occupied,
+    }
+
+
+def _transform_figures(t: RigidTransform, resolution: float | None) -> dict[str, Any]:
+    out: dict[str, Any] = dict(t.to_dict())
+    out["translation_norm_cells"] = math.hypot(t.tx, t.ty)
+    if t.world is not None:
+        out["translation_norm_m"] = math.hypot(t.world.tx, t.world.ty)
+    elif resolution is not None:
+        out["translation_norm_m"] = math.hypot(t.tx, t.ty) * resolution
+    else:
+        out["translation_norm_m"] = None
+    return out
+
+
+def build_stats(
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    rep: Repair | None = None,
+) -> dict[str, Any]:
+    """The deterministic figures of ``stats.json`` (JSON-ready).
+
+    Parameters
+    ----------
+    result : BrokennessResult
+    map, reference : OccupancyMap
+    rep : Repair, optional
+        Computed with :func:`brokenness.report.repair` when not given.
+
+    Returns
+    -------
+    dict
+        :meth:`BrokennessResult.to_dict` without timings, plus ``map``/``reference``
+        geometry, per partition ``transform`` (cells, metres, translation norms) and
+        ``relative_to_largest`` (the transform ``T_i o T_0^-1`` in the reference frame that
+        takes where the largest partition puts a cell to where partition ``i`` puts it),
+        ``psi_map`` and ``psi_repaired``.
+    """
+    if rep is None:
+        rep = repair(result, map, reference)
+    stats = result.to_dict()
+    stats.pop("seconds", None)  # timings belong to info.json (not deterministic)
+    parts = []
+    t0 = result.partitions[0].transform if result.partitions else None
+    for p, d in zip(result.partitions, stats["partitions"], strict=True):
+        d = dict(d)
+        d.pop("step_seconds", None)
+        d["transform"] = _transform_figures(p.transform, reference.resolution)
+        if t0 is not None:
+            rel = p.transform.compose(t0.inverse())
+            d["relative_to_largest"] = _transform_figures(rel, reference.resolution)
+        parts.append(d)
+    stats["partitions"] = parts
+    stats["n_partitions"] = len(parts)
+    stats["map"] = _geometry(map)
+    stats["reference"] = _geometry(reference)
+    stats.update(rep.to_dict())
+    return _jsonable(stats)
+
+
+def _input_record(m: OccupancyMap) -> dict[str, Any]:
+    return {"path": m.source, "sha256": file_sha256(m.source) if m.source else None}
+
+
+def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), dict):
+            out[key] = {**out[key], **value}
+        else:
+            out[key] = value
+    return out
+
+
+def atomic_write(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename).
+
+    On any exception, including :class:`KeyboardInterrupt`, the temporary file is removed
+    and ``path`` is left as it was.
+    """
+    dest = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, dest)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _zip_bytes(members: Mapping[str, bytes]) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for name, data in members.items():
+            zi = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
+            zi.compress_type = zipfile.ZIP_DEFLATED
+            zi.external_attr = 0o644 << 16
+            zf.writestr(zi, data)
+    return buf.getvalue()
+
+
+# -- public API -------------------------------------------------------------------------------
+def save_results(
+    path: str | os.PathLike[str],
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    *,
+    info: Mapping[str, Any] | None = None,
+    dpi: int = 150,
+    repaired: Repair | None = None,
+) -> ResultRecord:
+    """Write a self-contained result file (zip) for one evaluated map.
+
+    Parameters
+    ----------
+    path : path-like
+        Destination, conventionally ``*.zip``. Its folder must exist.
+    result : BrokennessResult
+        The result of :func:`brokenness.compute_brokenness` for ``map`` and ``reference``.
+    map, reference : OccupancyMap
+        The inputs (their ``source`` paths are recorded with SHA-256 checksums).
+    info : mapping, optional
+        Extra entries for ``info.json`` (e.g. ``{"labels": {...}, "timings": {...}}``);
+        mappings are merged into the default entries of the same name.
+    dpi : int
+        Resolution of the overlay picture.
+    repaired : Repair, optional
+        Reuse an already computed :func:`brokenness.report.repair`.
+
+    Returns
+    -------
+    ResultRecord
+        What was written (as :func:`load_results` would read it back).
+
+    Raises
+    ------
+    MapError
+        If the result does not belong to the map.
+    OSError
+        If the file cannot be written (nothing is left at ``path`` then).
+
+    Examples
+    --------
+    >>> save_results("run.zip", result, m, ref, info={"labels": {"system": "gmapping"}})
+    ... # doctest: +SKIP
+    """
+    rep = repaired if repaired is not None else repair(result, map, reference)
+    stats = build_stats(result, map, reference, rep)
+    base: dict[str, Any] = {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "package": "brokenness",
+        "version": __version__,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "method": result.method,
+        "parameters": dict(result.parameters),
+        "inputs": {"map": _input_record(map), "reference": _input_record(reference)},
+        "timings": {
+            "compute_seconds": result.seconds,
+            "step_seconds": list(result.step_seconds),
+        },
+        "labels": {},
+    }
+    info_dict = _jsonable(_merge(base, info or {}))
+    labels = np.ascontiguousarray(result.labels, dtype=np.int16)
+    npy = io.BytesIO()
+    np.save(npy, labels, allow_pickle=False)
+    png = io.BytesIO()
+    render_overlay(result, map, reference, png, dpi=dpi)
+    members = {
+        "info.json": _dumps(info_dict),
+        "stats.json": _dumps(stats),
+        "labels.npy": npy.getvalue(),
+        "overlay.png": png.getvalue(),
+    }
+    atomic_write(path, _zip_bytes(members))
+    return ResultRecord(info_dict, stats, labels, members["overlay.png"], Path(path))
+
+
+def load_results(path: str | os.PathLike[str]) -> ResultRecord:
+    """Read a result file written by :func:`save_results`.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    ResultRecord
+
+    Raises
+    ------
+    ResultFileError
+        If the file is missing, not a zip, or not a brokenness result file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ResultFileError(f"{p}: no such result file")
+    try:
+        with zipfile.ZipFile(p) as zf:
+            names = set(zf.namelist())
+            missing = [m for m in _MEMBERS if m not in names]
+            if missing:
+                raise ResultFileError(f"{p}: not a brokenness result file (no {missing[0]})")
+            info = json.loads(zf.read("info.json"))
+            stats = json.loads(zf.read("stats.json"))
+            labels = np.load(io.BytesIO(zf.read("labels.npy")), allow_pickle=False)
+            overlay = zf.read("overlay.png")
+    except ResultFileError:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        raise ResultFileError(f"{p}: not a valid zip file ({exc})") from None
+    except (ValueError, OSError) as exc:  # bad JSON / npy inside, read errors
+        raise ResultFileError(f"{p}: damaged result file ({exc})") from None
+    if not isinstance(info, dict) or info.get("format") != FORMAT_NAME:
+        raise ResultFileError(f"{p}: not a brokenness result file")
+    if not isinstance(stats, dict) or "degree" not in stats:
+        raise ResultFileError(f"{p}: stats.json has no degree")
+    return ResultRecord(info, stats, labels.astype(np.int16, copy=False), overlay, p)
