@@ -1,0 +1,221 @@
+"""Read an occupancy map straight from a ROS 1 or ROS 2 bag, without a ROS install.
+
+The map is the **last** ``nav_msgs/OccupancyGrid`` message on a topic (``/map`` by default),
+read with the pure-Python ``rosbags`` package:
+
+* ROS 1: a ``.bag`` file.
+* ROS 2: a bag folder with ``metadata.yaml`` (SQLite3 ``.db3`` or MCAP storage), or one
+  ``.db3`` / ``.mcap`` storage file. A storage file inside a bag folder is read through the
+  folder; a lone storage file (``metadata.yaml`` lost) is read directly.
+
+Message types are taken from the definitions stored in the bag; a bag without them
+(old ROS 2 SQLite bags) falls back to the ROS 2 Humble type store, whose
+``nav_msgs/msg/OccupancyGrid`` is the same in every ROS 1 and ROS 2 release.
+
+Conversion (``nav_msgs/MapMetaData`` semantics):
+
+* ``data`` is row-major starting at the cell ``(0, 0)`` of the grid, which lies at
+  ``info.origin`` -- the **bottom-left** corner when the origin's yaw is 0. Rows are flipped
+  so that row 0 is the top row, as everywhere in this package.
+* Values ``-1`` (unknown) and ``0..100`` (occupancy in percent) are thresholded by
+  :meth:`brokenness.OccupancyMap.from_array` (>= 65 occupied, <= 19 free, ``map_saver``'s
+  thresholds).
+* ``info.resolution`` is the resolution; ``info.origin`` gives ``(x, y, yaw)`` of the
+  lower-left corner, yaw from the quaternion (the same meaning as a ``map_server`` YAML).
+
+References
+----------
+.. [1] ``nav_msgs/OccupancyGrid`` and ``nav_msgs/MapMetaData``,
+   https://docs.ros.org/en/rolling/p/nav_msgs/
+.. [2] ``rosbags``, https://ternaris.gitlab.io/rosbags/
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import MapError, MapFormatError
+from ..grid import OccupancyMap
+from ._files import one_line
+
+__all__ = ["OCCUPANCY_GRID", "load_bag_map", "quaternion_yaw"]
+
+#: Message type of an occupancy grid, as ``rosbags`` names it for ROS 1 and ROS 2 alike.
+OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
+_STORAGE_SUFFIXES = (".db3", ".mcap")
+
+
+def quaternion_yaw(x: float, y: float, z: float, w: float) -> float:
+    """Yaw (rotation about z, radians in (-pi, pi]) of a quaternion.
+
+    The quaternion need not be normalised. For a pure yaw rotation
+    ``(0, 0, sin(t/2), cos(t/2))`` the result is ``t``.
+    """
+    return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def _typestore() -> Any:
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def _grid_to_map(msg: Any, source: str) -> OccupancyMap:
+    """An :class:`OccupancyMap` from a deserialised ``nav_msgs/OccupancyGrid``."""
+    info = msg.info
+    width, height = int(info.width), int(info.height)
+    data = np.asarray(msg.data)
+    if width <= 0 or height <= 0:
+        raise MapFormatError(f"{source}: the OccupancyGrid is empty ({width}x{height} cells)")
+    if data.size != width * height:
+        raise MapFormatError(
+            f"{source}: the OccupancyGrid has {data.size} values for {width}x{height} cells"
+        )
+    grid = data.astype(np.int8, copy=False).reshape(height, width)[::-1]  # row 0 = top
+    q = info.origin.orientation
+    origin = (
+        float(info.origin.position.x),
+        float(info.origin.position.y),
+        quaternion_yaw(float(q.x), float(q.y), float(q.z), float(q.w)),
+    )
+    try:
+        return OccupancyMap.from_array(
+            grid, resolution=float(info.resolution), origin=origin, source=source
+        )
+    except MapError as exc:
+        raise MapFormatError(f"{source}: bad OccupancyGrid: {exc}") from None
+
+
+def _pick(connections: Iterable[Any], topic: str, source: str) -> list[Any]:
+    """The connections of ``topic``; one-line errors when it is missing or of another type."""
+    conns = list(connections)
+    on_topic = [c for c in conns if c.topic == topic]
+    if not on_topic:
+        grids = sorted({c.topic for c in conns if c.msgtype == OCCUPANCY_GRID})
+        hint = (
+            f"; OccupancyGrid topics: {', '.join(grids)}"
+            if grids
+            else "; the bag has no OccupancyGrid topic"
+        )
+        raise MapError(f"{source}: no topic {topic!r} in the bag{hint}")
+    wrong = sorted({c.msgtype for c in on_topic if c.msgtype != OCCUPANCY_GRID})
+    if wrong:
+        raise MapFormatError(
+            f"{source}: topic {topic!r} carries {', '.join(wrong)}, not nav_msgs/OccupancyGrid"
+        )
+    return on_topic
+
+
+def _last_message(reader: Any, connections: list[Any]) -> bytes | None:
+    """Raw bytes of the last message (latest time stamp; ties: the last one read)."""
+    last: tuple[int, bytes] | None = None
+    for _conn, stamp, raw in reader.messages(connections=connections):
+        if last is None or stamp >= last[0]:
+            last = (stamp, bytes(raw))
+    return None if last is None else last[1]
+
+
+def _read_any(paths: list[Path], topic: str, source: str) -> OccupancyMap:
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader(paths, default_typestore=_typestore()) as reader:
+        conns = _pick(reader.connections, topic, source)
+        raw = _last_message(reader, conns)
+        if raw is None:
+            raise MapError(f"{source}: no message on topic {topic!r}")
+        msg = reader.deserialize(raw, OCCUPANCY_GRID)
+    return _grid_to_map(msg, source)
+
+
+def _read_storage_file(path: Path, topic: str, source: str) -> OccupancyMap:
+    """A lone rosbag2 storage file (no ``metadata.yaml``): read with its storage plugin."""
+    from rosbags.rosbag2.storage_mcap import McapReader
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+    storage: McapReader | Sqlite3Reader = (
+        McapReader(path) if path.suffix.lower() == ".mcap" else Sqlite3Reader(path)
+    )
+    storage.open()
+    try:
+        conns = _pick(storage.connections, topic, source)
+        raw = _last_message(storage, conns)
+    finally:
+        storage.close()
+    if raw is None:
+        raise MapError(f"{source}: no message on topic {topic!r}")
+    msg = _typestore().deserialize_cdr(raw, OCCUPANCY_GRID)
+    return _grid_to_map(msg, source)
+
+
+def _inside_bag_folder(path: Path) -> bool:
+    meta = path.parent / "metadata.yaml"
+    if not meta.is_file():
+        return False
+    try:
+        return path.name in meta.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+
+
+def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> OccupancyMap:
+    """Load the last ``nav_msgs/OccupancyGrid`` on ``topic`` from a ROS 1 or ROS 2 bag.
+
+    Parameters
+    ----------
+    path : path-like
+        A ROS 1 ``.bag`` file, a rosbag2 folder (with ``metadata.yaml``), or a rosbag2
+        ``.db3`` / ``.mcap`` storage file.
+    topic : str
+        The map topic (default ``/map``).
+
+    Returns
+    -------
+    OccupancyMap
+        Row 0 at the top; ``resolution`` and ``origin`` (x, y, yaw of the lower-left
+        corner) from the message's ``info``; ``source`` is the path as given.
+
+    Raises
+    ------
+    MapError
+        Missing path, no such topic, no message on the topic.
+    MapFormatError
+        Corrupt or unreadable bag, a topic of another message type, an inconsistent grid.
+
+    Examples
+    --------
+    >>> m = load_bag_map("run_2026-11-20.bag", topic="/map")  # doctest: +SKIP
+    >>> m.shape, m.resolution, m.origin  # doctest: +SKIP
+    ((384, 384), 0.05, (-10.0, -10.0, 0.0))
+    """
+    p = Path(os.fspath(path))
+    source = str(path)
+    if not p.exists():
+        raise MapError(f"{source}: no such file or folder")
+    if not isinstance(topic, str) or not topic:
+        raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
+    suffix = p.suffix.lower()
+    try:
+        if p.is_dir():
+            if not (p / "metadata.yaml").is_file():
+                raise MapFormatError(f"{source}: a rosbag2 folder needs a metadata.yaml")
+            return _read_any([p], topic, source)
+        if suffix == ".bag":
+            return _read_any([p], topic, source)
+        if suffix in _STORAGE_SUFFIXES:
+            if _inside_bag_folder(p):
+                return _read_any([p.parent], topic, source)
+            return _read_storage_file(p, topic, source)
+        raise MapFormatError(f"{source}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)")
+    except MapError:
+        raise
+    except MemoryError:
+        raise MapFormatError(f"{source}: the bag is too large to read") from None
+    except Exception as exc:  # rosbags raises many kinds on damaged files
+        text = one_line(exc) or type(exc).__name__
+        raise MapFormatError(f"{source}: cannot read the bag ({text})") from None
