@@ -1,0 +1,75 @@
+"""Choosing, in each step, the registration hypothesis that aligns most of the remainder best."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..masking import ReferenceIndex
+from ..registration.base import Candidate
+from ..transform import RigidTransform
+from .refine import polish_transform, refine_transform, soft_agreement, sweep_rotation
+
+__all__ = ["best_hypothesis"]
+
+#: Candidates (by smooth agreement) that get the full refinement in each step.
+REFINED_CANDIDATES = 2
+#: At most this many cells (an even stride of them) score the hypotheses of a step.
+SAMPLE_CELLS = 4000
+
+
+def best_hypothesis(
+    candidates: list[Any],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> tuple[RigidTransform, NDArray[np.bool_], float] | None:
+    """Refine the most promising candidates; keep the one that aligns the most cells best.
+
+    Candidates are ranked by the smooth agreement score (:func:`soft_agreement`), which
+    rewards exact alignment over loose agreement: a transform that gains a few cells of
+    another partition by tilting the main one a little must not win.
+    """
+
+    def soft(moved: NDArray[np.float64]) -> float:
+        return soft_agreement(index.occupied_distance, moved, threshold)
+
+    def hard(moved: NDArray[np.float64]) -> NDArray[np.bool_]:
+        return index.occupied_agreement(moved, threshold)
+
+    # Hypotheses are scored on an evenly strided sample of the cells (deterministic).
+    sample = points[:: max(1, -(-points.shape[0] // SAMPLE_CELLS))]
+    # Rigid hypotheses only (a registration's matrix algebra may leave the scale at 1 +- 1e-15).
+    rigid = [
+        Candidate(
+            RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty), c.confidence
+        )
+        for c in candidates
+        if abs(c.transform.scale - 1.0) < 1e-6
+    ]
+    raw = [(soft(c.transform.apply(sample)), i, c) for i, c in enumerate(rigid)]
+    raw.sort(key=lambda item: (-item[0], item[1]))
+    best: tuple[RigidTransform, float] | None = None
+    best_score = -1.0
+    # Refine the best hypothesis, and the runner-up only when it scored comparably.
+    contenders = [c for value, _, c in raw[:REFINED_CANDIDATES] if value >= 0.5 * raw[0][0]]
+    for cand in contenders:
+        moved = cand.transform.apply(sample)
+        agree = hard(moved)
+        if not agree.any():
+            continue
+        swept = sweep_rotation(cand.transform, sample, soft, moved[agree].mean(axis=0))
+        fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
+        polished = polish_transform(
+            fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
+        )
+        for option in (polished, fitted, swept, cand.transform):
+            value = soft(option.apply(sample))
+            if value > best_score:
+                best_score = value
+                best = (option, float(cand.confidence))
+    if best is None:
+        return None
+    return best[0], hard(best[0].apply(points)), best[1]

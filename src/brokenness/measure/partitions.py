@@ -1,0 +1,195 @@
+"""Partitions: growing, merging and reassigning their cells, and the final result objects."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from ..grid import OccupancyMap
+from ..masking import ReferenceIndex, cell_points
+from ..masking.distance import lookup_distance
+from ..transform import RigidTransform
+from .result import NOT_OCCUPIED, UNASSIGNED, Partition
+
+__all__ = [
+    "Found",
+    "assemble",
+    "labels_in_original_grid",
+    "merge_target",
+    "reassign",
+    "with_fringe",
+]
+
+
+@dataclass(frozen=True)
+class Found:
+    """A partition as the recursion finds it (before sorting by size)."""
+
+    transform: RigidTransform
+    members: NDArray[np.intp]  # indices into the map's occupied points
+    confidence: float
+    seconds: float
+
+
+def with_fringe(
+    transform: RigidTransform,
+    pts: NDArray[np.float64],
+    agree: NDArray[np.bool_],
+    index: ReferenceIndex,
+    loose: float,
+) -> NDArray[np.bool_]:
+    """``agree`` plus the cells that agree loosely and touch it in the map (8-connected).
+
+    Thick walls, clutter and a residual error of a fraction of a cell leave a fringe of
+    cells just beyond the threshold around a partition. Left behind, such a fringe could later
+    pass for a partition of its own; it belongs to the partition it touches.
+    """
+    near = lookup_distance(index.occupied_distance, transform.apply(pts)) <= loose
+    if np.array_equal(near, agree):
+        return agree
+    cols = pts[:, 0].astype(np.intp)
+    rows = pts[:, 1].astype(np.intp)
+    c0, r0 = cols.min(), rows.min()
+    grid = np.zeros((rows.max() - r0 + 1, cols.max() - c0 + 1), np.uint8)
+    grid[rows[near] - r0, cols[near] - c0] = 1
+    _, comp = cv2.connectedComponents(grid, connectivity=8)
+    seeds = np.unique(comp[rows[agree] - r0, cols[agree] - c0])
+    touched = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
+    return agree | (near & touched)
+
+
+def merge_target(
+    found: list[Found], pts: NDArray[np.float64], index: ReferenceIndex, merge_threshold: float
+) -> int | None:
+    """Index of the earlier partition whose transform loosely explains ``pts``, if any.
+
+    Under that transform, at least half of the cells that chance would not put within
+    ``merge_threshold`` of a reference wall must land there: ``(share - q) / (1 - q) >= 0.5``
+    with ``q`` the chance agreement at ``merge_threshold`` (in a dense map a loose threshold
+    is met by many cells of a part that is really off).
+    """
+    q = index.chance_agreement(merge_threshold)
+    best, best_excess = None, 0.5
+    for i, f in enumerate(found):
+        d = lookup_distance(index.occupied_distance, f.transform.apply(pts))
+        share = float(np.count_nonzero(d <= merge_threshold)) / max(pts.shape[0], 1)
+        excess = (share - q) / (1.0 - q) if q < 1.0 else 0.0
+        if excess >= best_excess:
+            best, best_excess = i, excess
+    return best
+
+
+def reassign(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    min_cells: int,
+) -> list[Found]:
+    """Give each cell to the partition under whose transform it agrees *best*.
+
+    The recursion is greedy: the first partition takes every cell that agrees with the
+    reference under its transform, including cells of other parts that land near a wall by
+    coincidence (common in maps of many similar rooms). Once all transforms are known, each
+    agreeing cell goes to the partition that puts it closest to a reference wall; ties keep
+    the greedy choice when it is among them, else the larger partition. Cells that agree under
+    no transform stay unassigned. A partition left with fewer than ``min_cells`` cells is
+    dropped and the assignment repeated without it.
+    """
+    if len(found) < 2:
+        return found
+    owner = np.full(points.shape[0], -1, dtype=np.intp)
+    for j, f in enumerate(found):
+        owner[f.members] = j
+    kept = list(range(len(found)))
+    while True:
+        distances = np.stack(
+            [
+                lookup_distance(index.occupied_distance, found[j].transform.apply(points))
+                for j in kept
+            ]
+        )
+        best = distances.min(axis=0)
+        tied = distances == best
+        greedy = np.array([owner == j for j in kept])
+        # the greedy owner if it is among the best, else the first (largest-found) best
+        choice = np.where(
+            (tied & greedy).any(axis=0), np.argmax(tied & greedy, axis=0), np.argmax(tied, axis=0)
+        )
+        assigned = np.where(best <= threshold, np.asarray(kept)[choice], -1)
+        sizes = {j: int(np.count_nonzero(assigned == j)) for j in kept}
+        small = [j for j in kept if sizes[j] < min_cells]
+        if not small or len(kept) == 1:
+            break
+        kept = [j for j in kept if j not in small]
+    return [
+        Found(
+            found[j].transform, np.flatnonzero(assigned == j), found[j].confidence, found[j].seconds
+        )
+        for j in kept
+        if sizes[j] > 0
+    ]
+
+
+def assemble(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    to_working: RigidTransform,
+    original: OccupancyMap,
+    ref: OccupancyMap,
+    index: ReferenceIndex,
+) -> tuple[list[Partition], NDArray[np.int16]]:
+    """Sort partitions by size, relate them to the largest, and draw the label image."""
+    order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
+    labels = np.full(working.shape, NOT_OCCUPIED, dtype=np.int16)
+    labels[working.occupied] = UNASSIGNED
+    partitions: list[Partition] = []
+    if not found:
+        return partitions, labels
+    largest = found[order[0]].transform
+    for new_index, i in enumerate(order):
+        f = found[i]
+        pts = points[f.members]
+        labels[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)] = new_index
+        offset = math.degrees(math.remainder(f.transform.rotation - largest.rotation, 2 * math.pi))
+        displacement = float(f.transform.displacement(largest, pts).mean()) if new_index else 0.0
+        whole = f.transform.compose(to_working).with_world(original, ref)
+        partitions.append(
+            Partition(
+                index=new_index,
+                cells=int(f.members.size),
+                fraction=0.0,  # filled in by the caller, in original cells
+                transform=whole,
+                confidence=f.confidence,
+                rotation_offset_deg=0.0 if new_index == 0 else offset,
+                displacement=displacement,
+                displacement_m=None if ref.resolution is None else displacement * ref.resolution,
+                step_seconds=f.seconds,
+            )
+        )
+    return partitions, labels
+
+
+def labels_in_original_grid(
+    labels: NDArray[np.int16],
+    working: OccupancyMap,
+    to_working: RigidTransform,
+    original: OccupancyMap,
+) -> NDArray[np.int16]:
+    """Carry the working-grid labels back to the original map's grid (nearest cell)."""
+    if working is original:
+        return labels
+    out = np.full(original.shape, NOT_OCCUPIED, dtype=np.int16)
+    occ = original.occupied
+    pts = to_working.apply(cell_points(occ))
+    h, w = labels.shape
+    c = np.clip(np.rint(pts[:, 0]).astype(np.intp), 0, w - 1)
+    r = np.clip(np.rint(pts[:, 1]).astype(np.intp), 0, h - 1)
+    lab = labels[r, c]
+    out[occ] = np.where(lab >= 0, lab, UNASSIGNED)
+    return out
