@@ -4,14 +4,18 @@ The recursion, for a map M and a reference R::
 
     T = occupied cells of M
     repeat:
-        register T with R                      -> ranked candidate transforms
-        refine each candidate (ICP), keep the one under which most cells of T agree
+        register T with R                      -> ranked hypotheses (plus the previous
+                                                  step's, which may fit what is left better)
+        refine the best ones on the cells      (rotation sweep, trimmed ICP, compass search
+                                                  on the agreement itself: measure.refine)
         L = cells of T that agree with R       (Psi_2: Manhattan distance to an occupied
-                                                 reference cell <= threshold)
+                                                 reference cell <= threshold), plus the
+                                                 fringe that agrees loosely and touches L
         stop if L is not significant           (see "Stopping rule" below)
-        if L agrees with an earlier partition's transform (loosely), add it there;
+        if L is explained by an earlier partition's transform, add it there;
         else count L as a new partition
         T = T \\ L;  R = R \\ (reference cells matched by L)
+    give every cell to the partition whose transform aligns it best (measure.partitions)
 
 Stopping rule ("nothing significant is left")
 ---------------------------------------------
@@ -27,14 +31,23 @@ partition only if all of these hold:
    covers the maximisation over transforms done by the registration).
 
 Otherwise the recursion stops and the cells left in T are *unassigned* (reported as such,
-label :data:`~brokenness.measure.result.UNASSIGNED`). A set that passes but whose cells
-agree, within ``merge_threshold``, with the transform of a partition already found is not
-"off" relative to it (thickened walls, jitter): it is merged into that partition and not
-counted.
+label :data:`~brokenness.measure.result.UNASSIGNED`). A set that passes but is explained by
+the transform of a partition already found -- at least half of its cells that chance would
+not put within ``merge_threshold`` of a wall land there -- is not "off" relative to it
+(thickened walls, jitter): it is merged into that partition and not counted.
+
+Noise: when the reference's walls are connected lines, isolated occupied cells of the map
+(salt-and-pepper) are hidden from the registration, whose spectra they would flatten; they
+are still counted by the masking.
 
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
 paper's per-step transforms), without resampling T again and again.
+
+Because the recursion is greedy, a partition found early also takes cells of later ones that
+agree with the reference by coincidence (likely in maps of many similar rooms). Once all
+transforms are known, each cell is therefore given to the partition that puts it closest to
+a reference wall (ties keep the greedy choice); partitions left too small are dropped.
 """
 
 from __future__ import annotations
