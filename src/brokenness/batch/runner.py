@@ -21,6 +21,7 @@ import concurrent.futures as cf
 import csv
 import io
 import json
+import logging
 import multiprocessing
 import os
 import time
@@ -336,23 +337,31 @@ def _run_dask(
     scheduler: str | None,
     local_cluster: bool,
     workers: int,
+    connect_timeout: float = 10.0,
 ) -> None:
     distributed = _import_distributed()
     cluster = None
     try:
         if local_cluster:
-            cluster = distributed.LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                host="127.0.0.1",
-                dashboard_address=None,
-                silence_logs="error",
-            )
+            try:
+                cluster = distributed.LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
+            except (OSError, RuntimeError, TimeoutError) as exc:
+                raise ParameterError(
+                    f"cannot start a local Dask cluster: {one_line(exc)}"
+                ) from None
             client = distributed.Client(cluster, set_as_default=False)
         else:
             try:
-                client = distributed.Client(scheduler, timeout="10s", set_as_default=False)
+                client = distributed.Client(
+                    scheduler, timeout=connect_timeout, set_as_default=False
+                )
             except (OSError, TimeoutError, ValueError) as exc:
                 raise ParameterError(
                     f"cannot connect to the Dask scheduler at {scheduler}: {one_line(exc)}"
@@ -365,7 +374,7 @@ def _run_dask(
                 for p in pairs
             }
             try:
-                for fut in distributed.as_completed(list(futures)):
+                for fut in distributed.as_completed(list(futures), loop=client.loop):
                     pair = futures[fut]
                     try:
                         row = fut.result()
@@ -486,6 +495,7 @@ def run_batch(
     options: PairOptions | Mapping[str, Any] | None = None,
     progress: bool = True,
     console: Console | None = None,
+    connect_timeout: float = 10.0,
 ) -> BatchSummary:
     """Evaluate every pair of a manifest and write one result zip per pair plus a summary.
 
@@ -511,6 +521,8 @@ def run_batch(
         Show a progress bar (rich) with rate and ETA on stderr.
     console : rich.console.Console, optional
         Where the progress bar goes.
+    connect_timeout : float
+        Seconds to wait for the Dask scheduler at ``scheduler``.
 
     Returns
     -------
@@ -586,6 +598,7 @@ def run_batch(
                     scheduler=scheduler,
                     local_cluster=local_cluster,
                     workers=n_workers,
+                    connect_timeout=connect_timeout,
                 )
             elif n_workers == 1 or len(todo) == 1:
                 _run_inline(todo, out, opts, done)

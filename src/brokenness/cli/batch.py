@@ -1,0 +1,127 @@
+"""``brokenness batch MANIFEST --out DIR``: evaluate every map/reference pair of a manifest.
+
+One result zip per pair is written into ``DIR`` as soon as the pair is done, then
+``summary.csv`` and ``summary.md`` for the whole manifest. Pairs whose result zip is already
+in ``DIR`` are skipped, so re-running the same command after a crash or Ctrl-C resumes.
+
+Exit codes: 0 when every pair has a result (evaluated now or before); 1 when the batch ran
+to the end but some pairs failed (bad map file...): their error rows are in the summary and
+in ``<pair>.error.json``, and re-running retries exactly those; 2 when nothing could be run
+(bad manifest, bad option, unreachable Dask scheduler); 130 on Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from ..registration.methods import METHODS
+
+__all__ = ["EXIT_PAIRS_FAILED", "add_parser", "run"]
+
+#: Exit code when the batch completed but at least one pair became an error row.
+EXIT_PAIRS_FAILED = 1
+
+
+def add_parser(subparsers: Any) -> None:
+    """Register ``batch``."""
+    p = subparsers.add_parser(
+        "batch",
+        help="evaluate many map/reference pairs listed in a manifest",
+        description=(
+            "Evaluate every map/reference pair of MANIFEST (CSV with columns map, reference "
+            "and any labels such as system, dataset, noise; or YAML) in parallel. Writes one "
+            "result zip per pair into --out as it finishes, and summary.csv / summary.md at the "
+            "end. Pairs already done are skipped (resume). Exit 0 when every pair has a "
+            "result, 1 when some pairs failed (see the summary), 2 on a bad manifest."
+        ),
+    )
+    p.add_argument("manifest", help="CSV or YAML list of pairs (paths relative to it)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="parallel processes, or workers of --local-cluster (default: number of CPUs)",
+    )
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        default=None,
+        help="run on an existing Dask cluster (tcp://host:8786); maps and DIR must be on a "
+        "file system the workers share",
+    )
+    where.add_argument(
+        "--local-cluster",
+        action="store_true",
+        help="start a Dask LocalCluster on 127.0.0.1 with --workers processes",
+    )
+    p.add_argument(
+        "--method",
+        choices=METHODS,
+        default=None,
+        help="registration method (default ifmi; a 'method' column of the manifest wins)",
+    )
+    p.add_argument(
+        "--threshold",
+        type=float,
+        default=None,
+        help="masking threshold c in reference cells (default 2)",
+    )
+    p.add_argument(
+        "--min-partition-fraction",
+        type=float,
+        default=None,
+        help="smallest partition as a share of the occupied cells (default 0.02)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def _compute_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Only the options given on the command line (the manifest's own apply otherwise)."""
+    given = {
+        "method": args.method,
+        "threshold": args.threshold,
+        "min_partition_fraction": args.min_partition_fraction,
+    }
+    return {k: v for k, v in given.items() if v is not None}
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the batch and print where the results are."""
+    from rich.console import Console
+    from rich.markup import escape
+
+    from ..batch import read_manifest, run_batch
+    from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_SKIPPED
+
+    manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
+    console = Console(stderr=True)
+    summary = run_batch(
+        manifest,
+        args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        local_cluster=args.local_cluster,
+        options=_compute_options(args),
+        progress=not args.no_progress,
+        console=console,
+    )
+    done, skipped = summary.count(STATUS_DONE), summary.count(STATUS_SKIPPED)
+    failed = [r for r in summary.rows if r.status == STATUS_ERROR]
+    out = Console(file=sys.stdout, soft_wrap=True)
+    out.print(
+        f"{len(summary.rows)} pairs: {done} evaluated, {skipped} already done, "
+        f"{len(failed)} failed"
+    )
+    for row in failed[:10]:
+        where = f"row {row.row} ({escape(row.map)})"
+        out.print(f"  [red]failed[/red] {where}: {escape(row.error or '')}")
+    if len(failed) > 10:
+        out.print(f"  ... and {len(failed) - 10} more (see the summary)")
+    out.print(f"summary: {escape(str(summary.csv_path))}, {escape(str(summary.markdown_path))}")
+    return EXIT_PAIRS_FAILED if failed else 0
