@@ -1,0 +1,88 @@
+"""``brokenness compare RESULTS...``: tables and plots over many result files.
+
+RESULTS are result zips (``brokenness compute --save-results``, ``brokenness batch``) or
+folders of them, such as a batch output folder, whose ``*.error.json`` files count as
+failures. Results are grouped by their labels (the manifest's columns).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers: Any) -> None:
+    """Register ``compare``."""
+    p = subparsers.add_parser(
+        "compare",
+        help="tables and plots over many result files",
+        description=(
+            "Group result zips (or folders of them, e.g. batch output folders) by their labels "
+            "and report per group the number of results and failures, mean and median degree, "
+            "mean largest-partition share and mean Psi. Optionally write the table (.csv or "
+            ".md) and a figure (.png, .pdf, .svg): degree vs a numeric noise label per system, "
+            "and the distribution of partition sizes."
+        ),
+    )
+    p.add_argument("results", nargs="+", metavar="RESULTS", help="result zips or folders")
+    p.add_argument(
+        "--group-by",
+        nargs="+",
+        metavar="LABEL",
+        default=None,
+        help="labels to group by (default: every label except seed)",
+    )
+    p.add_argument("--table", metavar="PATH", help="write the table to PATH (.csv or .md)")
+    p.add_argument("--plot", metavar="PATH", help="write the figure to PATH (.png, .pdf, .svg)")
+    p.add_argument(
+        "--x",
+        dest="x_label",
+        metavar="LABEL",
+        default=None,
+        help="numeric label on the x axis of the degree plot (default: noise if present)",
+    )
+    p.add_argument(
+        "--series",
+        dest="series_label",
+        metavar="LABEL",
+        default=None,
+        help="label that makes the series of the plots (default: system if present)",
+    )
+    p.add_argument("--dpi", type=int, default=200, help="resolution of a PNG plot (default 200)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Collect the results, print the table, write what was asked for."""
+    from rich.console import Console
+
+    from ..errors import ParameterError
+    from ..report.collect import collect_results
+    from ..report.plots import write_plot
+    from ..report.tables import group_table, rich_table, table_format, write_table
+
+    if args.table:
+        table_format(args.table)  # a bad suffix fails before any work
+    if args.dpi <= 0:
+        raise ParameterError(f"--dpi must be positive, got {args.dpi}")
+    entries = collect_results(args.results)
+    table = group_table(entries, args.group_by)
+    console = Console(file=sys.stdout)
+    failed = sum(e.failed for e in entries)
+    title = f"{len(entries) - failed} result(s), {failed} failure(s)"
+    console.print(rich_table(table, title=title))
+    if args.table:
+        console.print(f"table: {write_table(table, args.table)}")
+    if args.plot:
+        path = write_plot(
+            entries,
+            args.plot,
+            dpi=args.dpi,
+            x_label=args.x_label,
+            series_label=args.series_label,
+        )
+        console.print(f"plot: {path}")
+    return 0

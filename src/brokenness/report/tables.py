@@ -1,0 +1,238 @@
+"""Comparison tables: results grouped by their labels (system, dataset, noise...).
+
+One row per group of results that share the values of the grouping labels: the number of
+results, failures, mean and median degree, the mean share of the largest partition, and
+the mean picture distances Psi of the aligned and of the repaired map. Written as CSV or
+Markdown (by the file's suffix) and shown in the terminal with rich.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from .collect import ResultEntry, label_names, sort_key
+from .results import atomic_write
+
+__all__ = [
+    "FIGURES",
+    "GroupRow",
+    "GroupTable",
+    "group_table",
+    "rich_table",
+    "table_csv",
+    "table_markdown",
+    "write_table",
+]
+
+#: Figure columns of a table, after the label columns.
+FIGURES: tuple[str, ...] = (
+    "results",
+    "failed",
+    "mean_degree",
+    "median_degree",
+    "mean_largest_fraction",
+    "mean_psi_map",
+    "mean_psi_repaired",
+)
+_SUFFIXES = {".csv": "csv", ".md": "markdown", ".markdown": "markdown"}
+
+
+@dataclass(frozen=True)
+class GroupRow:
+    """Figures of one group of results.
+
+    Attributes
+    ----------
+    key : tuple of str or None
+        The group's value of each grouping label (``None``: the label is not set).
+    results : int
+        Results with a degree (failures not counted).
+    failed : int
+        Failed pairs (batch error files).
+    mean_degree, median_degree : float or None
+    mean_largest_fraction : float or None
+        Mean share of the occupied cells in the largest partition.
+    mean_psi_map, mean_psi_repaired : float or None
+        Mean Psi of the aligned map and of the repaired map against the reference.
+    """
+
+    key: tuple[str | None, ...]
+    results: int
+    failed: int
+    mean_degree: float | None
+    median_degree: float | None
+    mean_largest_fraction: float | None
+    mean_psi_map: float | None
+    mean_psi_repaired: float | None
+
+    def value(self, column: str) -> Any:
+        """The figure named ``column``."""
+        return getattr(self, column)
+
+
+@dataclass(frozen=True)
+class GroupTable:
+    """Rows grouped by ``group_by`` (labels), sorted by their values."""
+
+    group_by: tuple[str, ...]
+    rows: tuple[GroupRow, ...]
+
+    @property
+    def columns(self) -> list[str]:
+        """Label columns, then :data:`FIGURES`."""
+        return list(self.group_by) + list(FIGURES)
+
+    def records(self) -> list[dict[str, Any]]:
+        """One dict per row, keyed by :attr:`columns`."""
+        out = []
+        for row in self.rows:
+            rec: dict[str, Any] = dict(zip(self.group_by, row.key, strict=True))
+            rec.update({c: row.value(c) for c in FIGURES})
+            out.append(rec)
+        return out
+
+
+def _mean(values: Sequence[float]) -> float | None:
+    return float(np.mean(values)) if len(values) else None
+
+
+def _group_row(key: tuple[str | None, ...], members: Sequence[ResultEntry]) -> GroupRow:
+    ok = [e for e in members if not e.failed]
+    degrees = [float(e.degree) for e in ok if e.degree is not None]
+    largest = [e.largest_fraction for e in ok if e.largest_fraction is not None]
+    psi_map = [e.psi_map for e in ok if e.psi_map is not None]
+    psi_rep = [e.psi_repaired for e in ok if e.psi_repaired is not None]
+    return GroupRow(
+        key=key,
+        results=len(ok),
+        failed=len(members) - len(ok),
+        mean_degree=_mean(degrees),
+        median_degree=float(np.median(degrees)) if degrees else None,
+        mean_largest_fraction=_mean(largest),
+        mean_psi_map=_mean(psi_map),
+        mean_psi_repaired=_mean(psi_rep),
+    )
+
+
+def group_table(
+    entries: Sequence[ResultEntry], group_by: Sequence[str] | None = None
+) -> GroupTable:
+    """Group results by labels and compute each group's figures.
+
+    Parameters
+    ----------
+    entries : sequence of ResultEntry
+        From :func:`brokenness.report.collect_results`.
+    group_by : sequence of str, optional
+        Label names. Default: every label the results have except ``seed`` (seeds are what
+        a mean is taken over); no labels at all gives one group of everything.
+
+    Returns
+    -------
+    GroupTable
+        Groups sorted by their label values (numbers numerically).
+
+    Raises
+    ------
+    ParameterError
+        If a ``group_by`` label is used by none of the results.
+
+    Examples
+    --------
+    >>> table = group_table(collect_results(["results/"]), ["system", "noise"])  # doctest: +SKIP
+    """
+    names = label_names(entries)
+    if group_by is None:
+        keys = tuple(n for n in names if n != "seed")
+    else:
+        keys = tuple(dict.fromkeys(group_by))
+        unknown = [k for k in keys if k not in names]
+        if unknown:
+            have = ", ".join(names) if names else "none"
+            raise ParameterError(
+                f"no result has the label {unknown[0]!r} (labels: {have})"
+            )
+    groups: dict[tuple[str | None, ...], list[ResultEntry]] = {}
+    for e in entries:
+        groups.setdefault(tuple(e.labels.get(k) for k in keys), []).append(e)
+    ordered = sorted(groups, key=lambda key: [sort_key(v) for v in key])
+    return GroupTable(keys, tuple(_group_row(k, groups[k]) for k in ordered))
+
+
+def _text(value: Any, float_format: str) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return format(value, float_format)
+    return str(value)
+
+
+def table_csv(table: GroupTable) -> str:
+    """The table as CSV (full precision, empty cells for missing values)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(table.columns)
+    for rec in table.records():
+        writer.writerow([_text(rec[c], ".10g") for c in table.columns])
+    return buf.getvalue()
+
+
+def table_markdown(table: GroupTable) -> str:
+    """The table as a GitHub-flavoured Markdown table (3 decimals)."""
+
+    def esc(text: str) -> str:
+        return text.replace("|", "\\|").replace("\n", " ")
+
+    cols = table.columns
+    align = ["---" if c in table.group_by else "---:" for c in cols]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join(align) + "|"]
+    for rec in table.records():
+        lines.append("| " + " | ".join(esc(_text(rec[c], ".3f")) for c in cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_table(table: GroupTable, path: str | os.PathLike[str]) -> Path:
+    """Write the table as CSV (``.csv``) or Markdown (``.md``), atomically.
+
+    Raises
+    ------
+    ParameterError
+        For another suffix.
+    OSError
+        If the file cannot be written.
+    """
+    p = Path(path)
+    kind = table_format(p)
+    text = table_csv(table) if kind == "csv" else table_markdown(table)
+    atomic_write(p, text.encode("utf-8"))
+    return p
+
+
+def table_format(path: str | os.PathLike[str]) -> str:
+    """``"csv"`` or ``"markdown"`` from a file's suffix; :class:`ParameterError` otherwise."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise ParameterError(f"{path}: a table must be written to a .csv or .md file")
+    return _SUFFIXES[suffix]
+
+
+def rich_table(table: GroupTable, title: str | None = None) -> Any:
+    """The table as a :class:`rich.table.Table` for the terminal."""
+    from rich.table import Table
+
+    out = Table(title=title, header_style="bold")
+    for c in table.columns:
+        out.add_column(c.replace("_", " "), justify="left" if c in table.group_by else "right")
+    for rec in table.records():
+        cells = [_text(rec[c], ".3f") for c in table.columns]
+        out.add_row(*[c if c else "-" for c in cells])
+    return out
