@@ -12,6 +12,7 @@ from test_report_fixtures import SHIFT, broken_rooms, rooms
 
 from brokenness import OccupancyMap, RigidTransform, picture_distance
 from brokenness.errors import MapError
+from brokenness.measure.result import BrokennessResult, Partition
 from brokenness.report import (
     ResultFileError,
     load_results,
@@ -20,7 +21,12 @@ from brokenness.report import (
     repair_map,
     save_results,
 )
-from brokenness.report.overlay import overlay_image, palette_rgb, reference_in_map_frame
+from brokenness.report.overlay import (
+    overlay_figure,
+    overlay_image,
+    palette_rgb,
+    reference_in_map_frame,
+)
 from brokenness.report.repair import align_map, partition_owners
 
 
@@ -60,12 +66,44 @@ def test_render_overlay_writes_decodable_png(case, tmp_path):
         assert im.format == "PNG"
         w, h = im.size
         pixels = np.asarray(im.convert("RGB"))
-    assert w == 8 * 80 and 150 < h < 800
+    assert 0.85 * 8 * 80 < w < 1.1 * 8 * 80 and 150 < h < 800
     # both partition colours are present in the picture
     for colour in palette_rgb(2):
         target = np.round(np.asarray(colour) * 255)
         close = np.abs(pixels.astype(int) - target).sum(axis=2) <= 6
         assert close.sum() > 20
+
+
+@pytest.mark.parametrize("shape", [(40, 200), (200, 40)])
+def test_overlay_nothing_clipped(tmp_path, shape):
+    """Title, axis labels and legend lie inside the picture, for wide and tall maps."""
+    rows, cols = shape
+    states = np.zeros(shape, np.int8)
+    states[[0, -1], :] = 1
+    states[:, [0, -1]] = 1
+    m = OccupancyMap(states, 0.05, (0.0, 0.0, 0.0), source="a_map_with_a_long_file_name.pgm")
+    labels = np.where(m.occupied, 0, -1).astype(np.int16)
+    labels[: rows // 2][m.occupied[: rows // 2]] = 1
+    n0, n1 = int((labels == 0).sum()), int((labels == 1).sum())
+    n = n0 + n1
+    t = RigidTransform(0.1, 2.0, 3.0)
+    parts = tuple(
+        Partition(i, c, c / n, t, 0.9, 0.0, 123.45, 6.17, 0.0)
+        for i, c in enumerate((n0, n1))
+    )
+    result = BrokennessResult(1, parts, labels, n, 0, "ifmi", {}, 0.0)
+    fig = overlay_figure(result, m, m)
+    handles = fig.legends[0].legend_handles
+    assert len(handles) == 3
+    out = tmp_path / "o.png"
+    render_overlay(result, m, m, out, dpi=60)
+    with Image.open(out) as im:
+        px = np.asarray(im.convert("L")).astype(int)
+    # a clipped artist would touch the border; the trimmed picture keeps a white margin
+    edges = (px[:3], px[-3:], px[:, :3], px[:, -3:])
+    border = np.concatenate([e.ravel() for e in edges])
+    assert (border == 255).all()
+    assert (px < 128).sum() > 100  # text and walls were drawn
 
 
 def test_overlay_rejects_result_of_another_map(case, tmp_path):

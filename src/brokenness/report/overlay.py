@@ -31,6 +31,7 @@ from ..transform import RigidTransform
 
 __all__ = [
     "PARTITION_COLOURS",
+    "overlay_figure",
     "overlay_image",
     "palette_rgb",
     "partition_colour",
@@ -51,9 +52,9 @@ PARTITION_COLOURS: tuple[str, ...] = (
     "#44AA99",  # teal (Tol)
     "#999933",  # olive (Tol)
 )
-_REFERENCE_GREY = (0.80, 0.80, 0.80)
+_REFERENCE_GREY = (0.62, 0.62, 0.62)
 _FREE = (1.0, 1.0, 1.0)
-_UNKNOWN = (0.94, 0.94, 0.94)
+_UNKNOWN = (0.91, 0.91, 0.91)
 _UNASSIGNED = (0.0, 0.0, 0.0)
 
 
@@ -161,6 +162,60 @@ def _legend_handles(result: BrokennessResult) -> list[Patch]:
     return handles
 
 
+def overlay_figure(
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    *,
+    title: str | None = None,
+    width_inches: float = 8.0,
+    dpi: int = 150,
+) -> Figure:
+    """The partition overlay as a :class:`matplotlib.figure.Figure` (Agg canvas).
+
+    The legend sits below the map, outside it, in space that the constrained layout
+    reserves, so that no entry is clipped whatever the map's aspect ratio or the length of
+    the entries. Parameters as for :func:`render_overlay`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if dpi <= 0 or width_inches <= 0:
+        raise MapError("dpi and width must be positive")
+    rgb = overlay_image(result, map, reference)
+    rows, cols = map.shape
+    handles = _legend_handles(result)
+    ncols = 1 if len(handles) <= 3 else 2
+    legend_rows = -(-len(handles) // ncols)
+    # the map gets about the full width; its height follows the aspect ratio (within limits)
+    image_height = min(max(width_inches * 0.9 * rows / cols, 1.5), 1.6 * width_inches)
+    height = image_height + 0.75 + 0.2 * (legend_rows + 1)
+    fig = Figure(figsize=(width_inches, height), dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    # "nearest" when a cell covers several pixels, smoothing only when cells are smaller
+    ax.imshow(rgb, interpolation="antialiased", interpolation_stage="rgba", origin="upper")
+    ax.set_xlabel("column (cells)")
+    ax.set_ylabel("row (cells)")
+    if title is None:
+        name = f" of {os.path.basename(map.source)}" if map.source else ""
+        title = f"Degree of brokenness{name}: {result.degree}"
+    ax.set_title(title)
+    fig.legend(
+        handles=handles,
+        title=f"degree {result.degree}, {len(result.partitions)} partition(s)",
+        loc="outside lower center",
+        ncols=ncols,
+        fontsize="small",
+        title_fontsize="small",
+        frameon=False,
+        handlelength=1.5,
+        columnspacing=1.5,
+    )
+    return fig
+
+
 def render_overlay(
     result: BrokennessResult,
     map: OccupancyMap,
@@ -187,7 +242,8 @@ def render_overlay(
     title : str, optional
         Title; by default the degree and the map's source.
     width_inches : float
-        Width of the whole figure, legend included.
+        Width of the figure before it is trimmed to its content (the legend is below the
+        map); the saved picture is about this wide.
 
     Raises
     ------
@@ -200,35 +256,14 @@ def render_overlay(
     --------
     >>> render_overlay(result, m, ref, "overlay.png", dpi=300)  # doctest: +SKIP
     """
-    if dpi <= 0 or width_inches <= 0:
-        raise MapError("dpi and width must be positive")
-    rgb = overlay_image(result, map, reference)
-    rows, cols = map.shape
-    image_width = width_inches * 0.62
-    height = max(2.5, image_width * rows / cols + 0.9)
-    fig = Figure(figsize=(width_inches, height), dpi=dpi, layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    ax.imshow(rgb, interpolation="antialiased", origin="upper")
-    ax.set_xlabel("column (cells)")
-    ax.set_ylabel("row (cells)")
-    if title is None:
-        name = f" of {os.path.basename(map.source)}" if map.source else ""
-        title = f"Degree of brokenness{name}: {result.degree}"
-    ax.set_title(title)
-    ax.legend(
-        handles=_legend_handles(result),
-        title=f"degree {result.degree}, {len(result.partitions)} partition(s)",
-        loc="upper left",
-        bbox_to_anchor=(1.02, 1.0),
-        fontsize="small",
-        title_fontsize="small",
-        frameon=False,
-    )
+    fig = overlay_figure(result, map, reference, title=title, width_inches=width_inches, dpi=dpi)
+    # "tight" on top of the constrained layout: the saved picture holds every artist (the
+    # layout alone can miss a few pixels of the title when the image's aspect is fixed)
+    tight = {"bbox_inches": "tight", "pad_inches": 0.08, "facecolor": "white"}
     if isinstance(path, (str, os.PathLike)):
-        fig.savefig(os.fspath(path), dpi=dpi)
+        fig.savefig(os.fspath(path), dpi=dpi, **tight)
     else:
-        fig.savefig(path, dpi=dpi, format="png", metadata={"Software": None})
+        fig.savefig(path, dpi=dpi, format="png", metadata={"Software": None}, **tight)
 
 
 def palette_rgb(n: int) -> Sequence[tuple[float, float, float]]:
