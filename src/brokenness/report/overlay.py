@@ -259,11 +259,17 @@ def render_overlay(
     fig = overlay_figure(result, map, reference, title=title, width_inches=width_inches, dpi=dpi)
     # "tight" on top of the constrained layout: the saved picture holds every artist (the
     # layout alone can miss a few pixels of the title when the image's aspect is fixed)
-    tight = {"bbox_inches": "tight", "pad_inches": 0.08, "facecolor": "white"}
     if isinstance(path, (str, os.PathLike)):
-        fig.savefig(os.fspath(path), dpi=dpi, **tight)
+        fig.savefig(os.fspath(path), dpi=dpi, bbox_inches="tight", pad_inches=0.08)
     else:
-        fig.savefig(path, dpi=dpi, format="png", metadata={"Software": None}, **tight)
+        fig.savefig(
+            path,
+            dpi=dpi,
+            format="png",
+            metadata={"Software": None},
+            bbox_inches="tight",
+            pad_inches=0.08,
+        )
 
 
 def palette_rgb(n: int) -> Sequence[tuple[float, float, float]]:
