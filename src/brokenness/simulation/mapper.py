@@ -235,10 +235,27 @@ def scan_counts(
         length = np.where(is_hit, rr, max_range)
         length = np.where(valid, length, 0.0)
         n_samples = np.ceil(length / (step * resolution)).astype(np.int64)
+        # clip every beam to the grid (sample k lies at fx0 + k * dfx, fy0 + k * dfy), so
+        # that no sample needs a bounds check: k_lo <= k <= k_hi, a hundredth of a cell inside
+        k_lo = np.zeros(len(rr))
+        k_hi = (n_samples - 1).astype(float)
+        for f0, df, size in ((fx0, dfx, cols), (fy0, dfy, rows)):
+            f0d, dfd = f0.astype(float), df.astype(float)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ka = (0.01 - f0d) / dfd
+                kb = (size - 0.01 - f0d) / dfd
+            moving = dfd != 0
+            k_lo = np.where(moving, np.maximum(k_lo, np.minimum(ka, kb)), k_lo)
+            k_hi = np.where(moving, np.minimum(k_hi, np.maximum(ka, kb)), k_hi)
+            still_out = ~moving & ((f0d < 0.01) | (f0d > size - 0.01))
+            k_hi = np.where(still_out, -1.0, k_hi)
+        k_lo = np.ceil(k_lo).astype(np.int64)
+        k_hi = np.floor(k_hi).astype(np.int64)
+        n_samples = np.maximum(k_hi - k_lo + 1, 0)
         beams = np.flatnonzero(n_samples > 0)
         csum = np.cumsum(n_samples[beams])
         start = 0
-        pending: list[NDArray[np.int64]] = []
+        pending: list[NDArray[np.int32]] = []
         n_pending = 0
         while start < len(beams):
             base = csum[start - 1] if start > 0 else 0
@@ -248,18 +265,15 @@ def scan_counts(
             counts = n_samples[sel]
             total = int(counts.sum())
             first = np.cumsum(counts) - counts
-            k = (np.arange(total, dtype=np.int32) - np.repeat(first.astype(np.int32), counts)
-                 ).astype(np.float32)
+            k = (np.arange(total, dtype=np.int32)
+                 - np.repeat((first - k_lo[sel]).astype(np.int32), counts)).astype(np.float32)
             col = np.floor(np.repeat(fx0[sel], counts) + k * np.repeat(dfx[sel], counts))
             row = np.floor(np.repeat(fy0[sel], counts) + k * np.repeat(dfy[sel], counts))
-            col = col.astype(np.int32)
-            row = (rows - 1) - row.astype(np.int32)
-            inside = (col >= 0) & (col < cols) & (row >= 0) & (row < rows)
-            cell = row.astype(np.int64) * cols + col
-            keep = inside.copy()
-            keep[1:] &= cell[1:] != cell[:-1]  # each beam counts once per cell ...
-            keep[first] = inside[first]  # ... (a new beam starts afresh)
-            keep &= cell != np.repeat(hit_cell[sel], counts)  # the end point's cell is a hit
+            cell = (rows - 1 - row.astype(np.int32)) * np.int32(cols) + col.astype(np.int32)
+            keep = np.empty(total, dtype=bool)
+            keep[1:] = cell[1:] != cell[:-1]  # each beam counts once per cell ...
+            keep[first] = True  # ... (a new beam starts afresh)
+            keep &= cell != np.repeat(hit_cell[sel].astype(np.int32), counts)  # end: a hit
             pending.append(cell[keep])
             n_pending += len(pending[-1])
             if n_pending > _FLUSH_CELLS or stop >= len(beams):
