@@ -70,10 +70,13 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--dpi must be positive, got {args.dpi}")
     entries = collect_results(args.results)
     table = group_table(entries, args.group_by)
-    console = Console(file=sys.stdout)
     failed = sum(e.failed for e in entries)
-    title = f"{len(entries) - failed} result(s), {failed} failure(s)"
-    console.print(rich_table(table, title=title))
+    shown = rich_table(table, title=f"{len(entries) - failed} result(s), {failed} failure(s)")
+    console = Console(file=sys.stdout)
+    if not console.is_terminal:  # piped or redirected: the whole table, never cut to 80
+        wide = Console(file=sys.stdout, width=10_000).measure(shown).maximum
+        console = Console(file=sys.stdout, width=max(80, wide))
+    console.print(shown)
     if args.table:
         console.print(f"table: {write_table(table, args.table)}")
     if args.plot:

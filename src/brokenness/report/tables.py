@@ -43,6 +43,17 @@ FIGURES: tuple[str, ...] = (
     "mean_psi_map",
     "mean_psi_repaired",
 )
+#: Labels that lead a default grouping, in this order (the rest follow as first seen).
+_FIRST_LABELS = ("system", "method", "dataset")
+_SHORT = {
+    "results": "n",
+    "failed": "failed",
+    "mean_degree": "deg mean",
+    "median_degree": "deg median",
+    "mean_largest_fraction": "largest",
+    "mean_psi_map": "\N{GREEK CAPITAL LETTER PSI} map",
+    "mean_psi_repaired": "\N{GREEK CAPITAL LETTER PSI} repaired",
+}
 _SUFFIXES = {".csv": "csv", ".md": "markdown", ".markdown": "markdown"}
 
 
@@ -134,7 +145,8 @@ def group_table(
         From :func:`brokenness.report.collect_results`.
     group_by : sequence of str, optional
         Label names. Default: every label the results have except ``seed`` (seeds are what
-        a mean is taken over); no labels at all gives one group of everything.
+        a mean is taken over), ``system``, ``method`` and ``dataset`` first; no labels at
+        all gives one group of everything.
 
     Returns
     -------
@@ -152,7 +164,8 @@ def group_table(
     """
     names = label_names(entries)
     if group_by is None:
-        keys = tuple(n for n in names if n != "seed")
+        first = [n for n in _FIRST_LABELS if n in names]
+        keys = tuple(first + [n for n in names if n not in first and n != "seed"])
     else:
         keys = tuple(dict.fromkeys(group_by))
         unknown = [k for k in keys if k not in names]
@@ -229,9 +242,18 @@ def rich_table(table: GroupTable, title: str | None = None) -> Any:
     """The table as a :class:`rich.table.Table` for the terminal."""
     from rich.table import Table
 
-    out = Table(title=title, header_style="bold")
+    out = Table(
+        title=title,
+        header_style="bold",
+        caption="deg: degree of brokenness; largest: mean share of the largest partition; "
+        "\N{GREEK CAPITAL LETTER PSI}: picture distance to the reference (cells)",
+    )
     for c in table.columns:
-        out.add_column(c.replace("_", " "), justify="left" if c in table.group_by else "right")
+        if c in table.group_by:
+            out.add_column(c, justify="left", no_wrap=True, min_width=len(c))
+        else:
+            name = _SHORT.get(c, c)
+            out.add_column(name, justify="right", no_wrap=True, min_width=len(name))
     for rec in table.records():
         cells = [_text(rec[c], ".3f") for c in table.columns]
         out.add_row(*[c if c else "-" for c in cells])
