@@ -535,6 +535,13 @@ def run_batch(
     ParameterError
         For bad options, a missing Dask, or an unreachable scheduler.
 
+    Notes
+    -----
+    The local pool starts its workers with the ``forkserver`` method, which imports the
+    calling script again: a script that calls ``run_batch`` with ``workers > 1`` must do so
+    under ``if __name__ == "__main__":`` (as every multiprocessing program must), otherwise
+    every pair ends as a "worker failed" error row.
+
     Examples
     --------
     >>> summary = run_batch("runs.csv", "results", workers=2)  # doctest: +SKIP
