@@ -12,14 +12,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
 
 from ..errors import ParameterError
 from .building import Building
 
 __all__ = ["Laser", "LaserRun", "cast_rays", "route_poses", "simulate_run"]
+
+# sphere-tracing iterations before the remaining beams march in fixed steps
+_SPHERE_STEPS = 48
 
 
 @dataclass(frozen=True)
@@ -190,31 +193,44 @@ def cast_rays(
     p = np.asarray(poses, dtype=float).reshape(-1, 3)
     a = np.asarray(angles, dtype=float).ravel()
     rows, cols = solid.shape
-    # distance (cells) from each free cell's centre to the nearest solid cell's centre
-    dist = ndimage.distance_transform_edt(~solid).astype(np.float32)
+    # distance (cells) from each free cell's centre to the nearest solid cell's centre (exact)
+    dist = cv2.distanceTransform((~solid).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     safe = np.maximum(dist - 1.0, 0.5).astype(np.float32)  # cells a beam may advance
+    # a solid frame around the grid stops beams that would leave it
+    safe[0, :] = safe[-1, :] = safe[:, 0] = safe[:, -1] = 0.0
     heading = (p[:, 2:3] + a[None, :]).ravel()
-    fx0 = np.repeat(p[:, 0], len(a)) / resolution
-    fy0 = rows - np.repeat(p[:, 1], len(a)) / resolution  # row coordinate, growing down
-    dx, dy = np.cos(heading), -np.sin(heading)
+    x = (np.repeat(p[:, 0], len(a)) / resolution).astype(np.float32)
+    y = (rows - np.repeat(p[:, 1], len(a)) / resolution).astype(np.float32)  # row axis, down
+    dx, dy = np.cos(heading).astype(np.float32), (-np.sin(heading)).astype(np.float32)
     limit = max_range / resolution
-    t = np.zeros(len(heading))
-    out = np.full(len(heading), limit)
-    active = np.arange(len(heading))
-    for _ in range(int(4 * limit) + 10):  # each step advances at least half a cell
+    n = len(heading)
+    t = np.zeros(n, dtype=np.float32)
+    out = np.full(n, limit)
+    active = np.arange(n)
+    for _ in range(_SPHERE_STEPS):  # all beams march together, the arrays shrink as they stop
         if len(active) == 0:
             break
-        x = fx0[active] + t[active] * dx[active]
-        y = fy0[active] + t[active] * dy[active]
-        c, r = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
-        inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
-        cc, rr = np.clip(c, 0, cols - 1), np.clip(r, 0, rows - 1)
-        hit = inside & solid[rr, cc]
-        out[active[hit]] = t[active[hit]]
-        gone = ~inside | (t[active] >= limit)
-        keep = ~(hit | gone)
-        active = active[keep]
-        t[active] += safe[rr[keep], cc[keep]]
+        c = np.clip((x + t * dx).astype(np.int32), 0, cols - 1)  # x, y >= 0 inside the frame
+        r = np.clip((y + t * dy).astype(np.int32), 0, rows - 1)
+        step = safe[r, c]
+        hit = solid[r, c]
+        done = hit | (step == 0.0) | (t >= limit)
+        out[active[hit]] = t[hit]
+        keep = ~done
+        active, x, y, dx, dy, t = (v[keep] for v in (active, x, y, dx, dy, t))
+        t += step[keep]
+    # the few beams still marching (grazing along a wall): fixed half-cell steps, all at once
+    for part in np.array_split(np.arange(len(active)), max(1, len(active) // 256)):
+        if len(part) == 0:
+            continue
+        ts = t[part, None] + 0.5 * np.arange(int(2 * limit) + 2, dtype=np.float32)[None, :]
+        c = np.clip((x[part, None] + ts * dx[part, None]).astype(np.int32), 0, cols - 1)
+        r = np.clip((y[part, None] + ts * dy[part, None]).astype(np.int32), 0, rows - 1)
+        stop = solid[r, c] | (safe[r, c] == 0.0) | (ts >= limit)
+        first = np.argmax(stop, axis=1)
+        rows_ = np.arange(len(part))
+        ok = solid[r[rows_, first], c[rows_, first]] & (ts[rows_, first] < limit)
+        out[active[part[ok]]] = ts[rows_, first][ok]
     ranges = np.minimum(out, limit) * resolution
     return ranges.reshape(len(p), len(a))
 
