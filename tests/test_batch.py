@@ -14,8 +14,10 @@ from test_report_fixtures import rooms
 import brokenness
 import brokenness.cli.main as cli_main
 from brokenness import RigidTransform
-from brokenness.batch import ManifestError, read_manifest, run_batch
+from brokenness.batch import ManifestError, PairOptions, read_manifest, run_batch
 from brokenness.report import load_results
+
+FAST = PairOptions(dpi=30)  # small overlays: the pictures are not what these tests check
 
 # (map file, system, noise, expected degree); None = the file does not exist
 CASES = [
@@ -54,7 +56,7 @@ def by_map(summary):
 
 def test_pool_error_row_resume_and_summary(maps, tmp_path):
     out = tmp_path / "out"
-    summary = run_batch(maps / "manifest.csv", out, workers=2, progress=False)
+    summary = run_batch(maps / "manifest.csv", out, workers=2, progress=False, options=FAST)
     rows = by_map(summary)
     for name, system, noise, degree in CASES:
         row = rows[name]
@@ -104,7 +106,7 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
     mp = pytest.MonkeyPatch()
     mp.setattr(measure, "compute_brokenness", counting)
     try:
-        again = run_batch(maps / "manifest.csv", out, workers=1, progress=False)
+        again = run_batch(maps / "manifest.csv", out, workers=1, progress=False, options=FAST)
         assert calls == []  # the missing map fails while loading, before computing
         assert {p: p.stat().st_mtime_ns for p in zips} == stamps
         assert again.count("skipped") == 4 and again.count("error") == 1
@@ -112,7 +114,7 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
         # a lost and a damaged result are evaluated again, the rest still skipped
         zips[0].unlink()
         zips[1].write_bytes(b"PK\x03\x04 damaged")
-        third = run_batch(maps / "manifest.csv", out, workers=1, progress=False)
+        third = run_batch(maps / "manifest.csv", out, workers=1, progress=False, options=FAST)
         assert len(calls) == 2
         assert third.count("done") == 2 and third.count("skipped") == 2
         assert load_results(zips[1]).degree in (0, 1)
@@ -131,7 +133,7 @@ def test_yaml_manifest_and_options(maps, tmp_path):
 
     manifest = maps / "m.yaml"
     manifest.write_text(yaml.safe_dump(doc))
-    summary = run_batch(manifest, tmp_path, workers=1, progress=False)
+    summary = run_batch(manifest, tmp_path, workers=1, progress=False, options=FAST)
     (row,) = summary.rows
     assert row.status == "done" and row.labels == {"dataset": "rooms", "system": "alpha",
                                                    "noise": "0.1"}
@@ -154,10 +156,10 @@ def test_real_dask_cluster_on_loopback(maps, tmp_path):
     ) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         summary = run_batch(
-            manifest, dask_out, scheduler=cluster.scheduler_address, progress=False
+            manifest, dask_out, scheduler=cluster.scheduler_address, progress=False, options=FAST
         )
     assert summary.count("done") == 4 and summary.count("error") == 1
-    inline = run_batch(manifest, pool_out, workers=1, progress=False)
+    inline = run_batch(manifest, pool_out, workers=1, progress=False, options=FAST)
     # the same result files: deterministic figures equal bit for bit
     for a, b in zip(summary.rows, inline.rows, strict=True):
         assert (a.status, a.degree, a.result) == (b.status, b.degree, b.result)
@@ -169,13 +171,13 @@ def test_real_dask_cluster_on_loopback(maps, tmp_path):
 
 def test_batch_argument_errors(maps, tmp_path):
     with pytest.raises(brokenness.ParameterError, match="workers must be at least 1"):
-        run_batch(maps / "manifest.csv", tmp_path, workers=0, progress=False)
+        run_batch(maps / "manifest.csv", tmp_path, workers=0, progress=False, options=FAST)
     with pytest.raises(brokenness.ParameterError, match="not both"):
         run_batch(maps / "manifest.csv", tmp_path, scheduler="tcp://x:1", local_cluster=True)
     bad = tmp_path / "bad.csv"
     bad.write_text("map,ref\na.pgm,b.pgm\n")
     with pytest.raises(ManifestError, match="'reference'"):
-        run_batch(bad, tmp_path / "o", progress=False)
+        run_batch(bad, tmp_path / "o", progress=False, options=FAST)
     assert not (tmp_path / "o").exists()
 
 

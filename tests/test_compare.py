@@ -16,7 +16,7 @@ from test_report_fixtures import rooms
 import brokenness
 import brokenness.cli.main as cli_main
 from brokenness import RigidTransform
-from brokenness.batch import run_batch
+from brokenness.batch import PairOptions, run_batch
 from brokenness.errors import ParameterError
 from brokenness.report import (
     ResultFileError,
@@ -59,7 +59,9 @@ def batch_dir(tmp_path_factory) -> Path:
     lines += [f"{m},ref.yaml,{s},{n},{seed}" for s, n, seed, m in RUNS]
     (folder / "runs.csv").write_text("\n".join(lines) + "\n")
     out = folder / "results"
-    summary = run_batch(folder / "runs.csv", out, workers=1, progress=False)
+    summary = run_batch(
+        folder / "runs.csv", out, workers=1, progress=False, options=PairOptions(dpi=30)
+    )
     assert [r.degree for r in summary.rows] == [0, 0, 1, 0, 1, 1, None]
     return out
 
