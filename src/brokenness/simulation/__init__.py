@@ -1,20 +1,41 @@
 """Synthetic broken maps of known degree: buildings, a simulated laser, a mapper, bump noise.
 
 - :mod:`.building`: seeded floor plans (rooms, corridors, doors, clutter, slanted walls);
+- :mod:`.laser`: scan poses along a building's route, ray casting, range and pose noise;
 - :mod:`.mapper`: a vectorised log-odds occupancy-grid mapper for 2D laser scans;
+- :mod:`.bumps`: the paper's bump noise on the pose estimate (and an exact "k bumps" mode);
+- :mod:`.synthetic`: :func:`simulate_broken_map`, a broken map + reference + ground truth;
+- :mod:`.output`: :func:`save_simulation`, maps (ROS YAML + PGM), ground-truth JSON, labels.
 """
 
 from __future__ import annotations
 
 from .building import Building, generate_building
+from .bumps import Bump, apply_bumps, draw_bumps, draw_k_bumps
+from .laser import Laser, LaserRun, cast_rays, route_poses, simulate_run
 from .mapper import ScanCounts, counts_to_map, grid_geometry, map_scans, scan_counts
+from .output import save_simulation
+from .synthetic import SimulatedMap, SimulatedPartition, simulate_broken_map
 
 __all__ = [
     "Building",
+    "Bump",
+    "Laser",
+    "LaserRun",
     "ScanCounts",
+    "SimulatedMap",
+    "SimulatedPartition",
+    "apply_bumps",
+    "cast_rays",
     "counts_to_map",
+    "draw_bumps",
+    "draw_k_bumps",
     "generate_building",
     "grid_geometry",
     "map_scans",
+    "route_poses",
+    "save_simulation",
     "scan_counts",
+    "simulate_broken_map",
+    "simulate_run",
 ]

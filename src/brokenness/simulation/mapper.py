@@ -145,7 +145,9 @@ def grid_geometry(
     lo = np.floor((pts.min(axis=0) - margin) / resolution + 1e-9)
     hi = np.ceil((pts.max(axis=0) + margin) / resolution - 1e-9)
     cols, rows = (int(v) for v in np.maximum(hi - lo, 1))
-    return (rows, cols), (float(lo[0] * resolution), float(lo[1] * resolution), 0.0)
+    # rounded to nanometres, so that e.g. -117 * 0.05 is written as -5.85
+    x0, y0 = (round(float(v * resolution), 9) for v in lo)
+    return (rows, cols), (x0, y0, 0.0)
 
 
 def _to_cells(
