@@ -521,6 +521,13 @@ def run_batch(
         Show a progress bar (rich) with rate and ETA on stderr.
     console : rich.console.Console, optional
         Where the progress bar goes.
+
+    Notes
+    -----
+    The local pool starts its processes with ``forkserver``, which imports the caller's
+    main module in each worker: a script that calls ``run_batch(..., workers=2)`` needs the
+    usual ``if __name__ == "__main__":`` guard (without it every pair fails with a
+    ``BrokenProcessPool`` error row). The ``brokenness batch`` command has it.
     connect_timeout : float
         Seconds to wait for the Dask scheduler at ``scheduler``.
 
