@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import math
 import warnings
@@ -20,6 +21,7 @@ from brokenness import (
 )
 from brokenness.simulation.carmen import (
     CarmenLog,
+    broken_log_map,
     flaser_angles,
     log_geometry,
     map_log,
@@ -254,3 +256,63 @@ def test_map_options(log: CarmenLog) -> None:
         map_log(log, resolution=0.2, max_range=-1.0)
     with pytest.raises(ParameterError):
         map_log(log, resolution=0.2, poses=log.poses[:5])
+
+
+# -- broken maps of the real building -----------------------------------------------------------
+def _agreement(sim, j: int) -> float:  # noqa: ANN001
+    """Share of partition j's cells within 2 cells of an occupied reference cell (own check)."""
+    from brokenness.masking import cell_points
+    from brokenness.masking.distance import manhattan_distance_map
+
+    dist = manhattan_distance_map(sim.reference.occupied)
+    pts = np.rint(sim.partitions[j].transform.apply(cell_points(sim.labels == j))).astype(int)
+    rows, cols = dist.shape
+    inside = (pts[:, 0] >= 0) & (pts[:, 0] < cols) & (pts[:, 1] >= 0) & (pts[:, 1] < rows)
+    d = np.full(len(pts), np.inf)
+    d[inside] = dist[pts[inside, 1], pts[inside, 0]]
+    return float((d <= 2).mean())
+
+
+@pytest.fixture(scope="module")
+def broken2(log: CarmenLog):  # noqa: ANN201
+    return broken_log_map(log, degree=2, seed=1, resolution=0.1, max_range=10.0)
+
+
+def test_broken_log_map_ground_truth(log: CarmenLog, broken2) -> None:  # noqa: ANN001
+    sim = broken2
+    assert sim.expected_degree == 2 and len(sim.partitions) == 3 and len(sim.bumps) == 2
+    assert sim.map.resolution == sim.reference.resolution == 0.1
+    assert sim.map.shape != sim.reference.shape  # the bumped map needs a larger canvas
+    for j, part in enumerate(sim.partitions):
+        assert part.counted and part.share > 0.1
+        # measured 0.986, 0.981, 0.986
+        assert _agreement(sim, j) >= 0.9
+        # the world part takes the bumped pose estimate back onto the corrected poses
+        scans = np.arange(part.first_scan, part.end_scan)
+        assert part.transform.world is not None
+        back = part.transform.world.apply(sim.estimated_poses[scans, :2])
+        np.testing.assert_allclose(back, log.poses[scans, :2], atol=1e-9)
+    # the check can fail: partition 2's cells under partition 1's transform
+    swapped = dataclasses.replace(sim.partitions[2], transform=sim.partitions[1].transform)
+    wrong = dataclasses.replace(sim, partitions=(*sim.partitions[:2], swapped))
+    assert _agreement(wrong, 2) < 0.5
+
+
+def test_broken_log_map_is_measured_right(broken2) -> None:  # noqa: ANN001
+    result = compute_brokenness(broken2.map, broken2.reference, seed=0)
+    assert result.degree == 2
+
+
+def test_broken_log_map_degree_zero_and_determinism(log: CarmenLog, broken2) -> None:  # noqa: ANN001
+    sim = broken_log_map(log, degree=0, seed=5, resolution=0.1, max_range=10.0)
+    assert sim.expected_degree == 0 and sim.bumps == ()
+    assert sim.map.shape == sim.reference.shape and sim.map.origin == sim.reference.origin
+    np.testing.assert_array_equal(sim.map.states, sim.reference.states)
+    again = broken_log_map(log, degree=2, seed=1, resolution=0.1, max_range=10.0)
+    np.testing.assert_array_equal(again.map.states, broken2.map.states)
+    np.testing.assert_array_equal(again.labels, broken2.labels)
+    assert again.bumps == broken2.bumps
+    with pytest.raises(ParameterError):
+        broken_log_map(log, degree=1, bumps=1)
+    with pytest.raises(ParameterError):
+        broken_log_map(log, seed=-1)

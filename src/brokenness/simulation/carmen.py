@@ -45,6 +45,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,15 +53,22 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
+from ..masking import ReferenceIndex
+from .bumps import Bump, draw_bumps, draw_k_bumps
+from .laser import Laser, LaserRun
 from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
+from .synthetic import _CANVAS_MARGIN, SimulatedMap, broken_map_from_run
 
 __all__ = [
     "MAX_RANGE_MARGIN",
     "CarmenLog",
+    "WallCheck",
+    "broken_log_map",
     "flaser_angles",
     "log_geometry",
     "map_log",
     "read_carmen",
+    "wall_check",
 ]
 
 #: Relative margin below the max range at which a reading counts as a no return (0.2 %).
@@ -253,7 +261,7 @@ def _floats(rows: list[list[bytes]]) -> tuple[NDArray[np.float64], NDArray[np.bo
                 arr[i] = np.array(row, dtype=np.float64)
             except ValueError:
                 pass
-    return arr, np.isfinite(arr).all(axis=1)
+    return arr, np.asarray(np.isfinite(arr).all(axis=1))
 
 
 @dataclass
@@ -639,3 +647,170 @@ def wall_check(
     restricted = full.with_states(np.where(first.known, full.states, -1).astype(np.int8))
     psi = picture_distance(first, restricted)
     return WallCheck(cross, half_in_full, psi, n_compared, float(resolution), int(tolerance))
+
+
+# -- broken maps of a real building -------------------------------------------------------------
+def broken_log_map(
+    log: CarmenLog,
+    *,
+    seed: int = 0,
+    degree: int | None = None,
+    bumps: int | Sequence[Bump] | None = None,
+    bump_probability: float | None = None,
+    bump_radius: float = 1.0,
+    max_rotation: float = 180.0,
+    min_rotation: float = 10.0,
+    resolution: float = 0.05,
+    max_range: float | None = None,
+    clear_no_returns: bool = False,
+    threshold: float = 2.0,
+    merge_threshold: float = 4.0,
+    min_partition_fraction: float = 0.02,
+    min_partition_cells: int = 30,
+    max_attempts: int = 30,
+) -> SimulatedMap:
+    """A broken map of a real building: bump noise on a log's corrected pose chain.
+
+    The reference is the log mapped with its (corrected) poses; the broken map is the same
+    scans mapped with bumps composed onto the pose chain
+    (:func:`~brokenness.simulation.bumps.apply_bumps`: after bump ``j`` every pose carries the
+    world error ``E_j``). The ground truth and the honest expected degree are those of
+    :func:`~brokenness.simulation.synthetic.broken_map_from_run` (see
+    :mod:`brokenness.simulation.synthetic`): each partition's transform maps a broken-map cell
+    onto the reference grid in the convention of :func:`brokenness.compute_brokenness`
+    (``W_ref^-1 o E_j^-1 o W_map``), its ``world`` part is ``E_j^-1``.
+
+    Geometry: the reference covers the log's poses and hits (within the mapping range) plus
+    0.5 m; the broken map covers the images of that box under every ``E_j``. Without bumps the
+    two grids are identical (same shape and origin); with bumps the broken map's grid is the
+    larger box (same resolution, origin on the same lattice of cells).
+
+    Give at most one of ``degree``, ``bumps`` and ``bump_probability``.
+
+    Parameters
+    ----------
+    log : CarmenLog
+    seed : int
+        The bumps follow from it (same seed and parameters: same maps, bit for bit).
+    degree : int, optional
+        Make the honest expected degree exactly this (redrawn up to ``max_attempts`` times).
+    bumps : int or sequence of Bump, optional
+        Exactly this many bumps (drawn once; the degree may come out lower), or these bumps.
+    bump_probability : float, optional
+        The paper's model: each scan bumps with this probability.
+    bump_radius : float
+        ``r``: shifts ``d ~ U[0, r]`` metres.
+    max_rotation, min_rotation : float
+        Degrees, as in :func:`~brokenness.simulation.synthetic.simulate_broken_map`.
+    resolution : float
+        Metres per cell of both maps.
+    max_range, clear_no_returns
+        As in :func:`map_log`.
+    threshold, merge_threshold, min_partition_fraction, min_partition_cells
+        The honest rule of :mod:`brokenness.simulation.synthetic`.
+    max_attempts : int
+        Bound on redraws in ``degree`` mode.
+
+    Returns
+    -------
+    SimulatedMap
+        ``.map``, ``.reference``, ``.expected_degree``, ``.partitions`` (transforms, shares),
+        ``.labels``, ``.bumps``, ``.parameters``; ``.building`` is None and ``.run`` holds the
+        log's scans as mapped. Write it with :func:`~brokenness.simulation.save_simulation`.
+
+    Raises
+    ------
+    ParameterError
+        For invalid or conflicting options, or when ``degree`` is not reached.
+
+    Examples
+    --------
+    >>> log = read_carmen("tests/data/carmen/orebro-corrected.log.gz")  # doctest: +SKIP
+    >>> sim = broken_log_map(log, degree=1, seed=3, resolution=0.1,
+    ...                      max_range=10.0)  # doctest: +SKIP
+    >>> sim.expected_degree, len(sim.partitions)  # doctest: +SKIP
+    (1, 2)
+    """
+    modes = sum(v is not None for v in (degree, bumps, bump_probability))
+    if modes > 1:
+        raise ParameterError("give at most one of degree, bumps and bump_probability")
+    if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
+        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+    if degree is not None and not (isinstance(degree, int | np.integer) and degree >= 0):
+        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
+    if not (0.0 <= min_rotation <= max_rotation <= 180.0):
+        raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
+    if not (isinstance(max_attempts, int) and max_attempts >= 1):
+        raise ParameterError("max_attempts must be a positive integer")
+    seed = int(seed)
+    limit = _mapping_range(log, max_range)
+    ranges = log.ranges
+    if not clear_no_returns:
+        ranges = np.where(ranges >= log.hit_range, 0.0, ranges)
+    fov = float(np.degrees(log.angles[-1] - log.angles[0])) if log.n_beams > 1 else 1.0
+    laser = Laser(beams=log.n_beams, fov_deg=min(max(fov, 1e-6), 360.0), max_range=limit,
+                  range_sigma=0.0)
+    run = LaserRun(true_poses=log.poses, noisy_poses=log.poses, ranges=ranges,
+                   angles=log.angles, laser=laser)
+    # the box of everything the reference holds: poses and hits within the mapping range
+    near = log.ranges[log.hits] < limit
+    pts = np.concatenate([log.end_points()[near], log.poses[:, :2]])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    extent = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
+    reference = counts_to_map(_counts(log, log.poses, resolution, shape, origin, limit,
+                                      clear_no_returns))
+    reference = OccupancyMap(reference.states, reference.resolution, reference.origin,
+                             log.source)
+    index = ReferenceIndex.build(reference)
+    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
+
+    def attempt(k: int) -> list[Bump]:
+        rng = np.random.default_rng([seed, 2, k])
+        if degree is not None:
+            return draw_k_bumps(log.n_scans, int(degree), radius=bump_radius,
+                                max_rotation=max_rot, min_rotation=min_rot, rng=rng)
+        if bump_probability is not None:
+            return draw_bumps(log.n_scans, float(bump_probability), radius=bump_radius,
+                              max_rotation=max_rot, rng=rng)
+        if isinstance(bumps, int | np.integer):
+            return draw_k_bumps(log.n_scans, int(bumps), radius=bump_radius,
+                                max_rotation=max_rot, min_rotation=min_rot, rng=rng,
+                                spread=False)
+        return list(bumps or [])
+
+    tries = max_attempts if degree is not None else 1
+    seen: list[int] = []
+    outcome = None
+    for k in range(tries):
+        outcome = broken_map_from_run(
+            run, reference, attempt(k), extent=extent, index=index, threshold=threshold,
+            merge_threshold=merge_threshold, min_partition_fraction=min_partition_fraction,
+            min_partition_cells=min_partition_cells)
+        seen.append(outcome[1])
+        if degree is None or outcome[1] == degree:
+            break
+    assert outcome is not None
+    broken, expected, parts, labels, judged, bumped = outcome
+    if degree is not None and expected != degree:
+        raise ParameterError(
+            f"could not make a map of degree {degree} from {log.source or 'the log'} in "
+            f"{max_attempts} draws (got degrees {sorted(set(seen))}); try a lower degree")
+    parameters: dict[str, Any] = {
+        "seed": seed, "degree": degree,
+        "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
+        "bump_probability": bump_probability, "bump_radius": bump_radius,
+        "max_rotation_deg": max_rotation, "min_rotation_deg": min_rotation,
+        "resolution": resolution, "log": log.source, "message": log.message,
+        "scans": log.n_scans, "beams": log.n_beams, "max_range": limit,
+        "clear_no_returns": clear_no_returns, "threshold": threshold,
+        "merge_threshold": merge_threshold, "min_partition_fraction": min_partition_fraction,
+        "min_partition_cells": min_partition_cells, "attempts": len(seen),
+    }
+    broken = OccupancyMap(broken.states, broken.resolution, broken.origin, log.source)
+    return SimulatedMap(
+        map=broken, reference=reference, expected_degree=expected, partitions=parts,
+        labels=labels, bumps=judged, seed=seed, parameters=parameters, building=None, run=run,
+        estimated_poses=bumped.poses)
