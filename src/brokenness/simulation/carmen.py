@@ -31,8 +31,15 @@ Rules (documented, tested):
 - Max range: ``ROBOTLASER1`` logs its own (the largest over the kept scans); for ``FLASER`` it
   is the largest reading in the log (the Radish logs report a no-return as the sensor's maximum,
   e.g. 50, 51.1, 81.91 m; 32.767 m SICK codes in orebro). A reading at or above
-  ``(1 - MAX_RANGE_MARGIN) * max_range`` is a *no return*: not a hit (it still clears free
-  space when mapped, up to the mapping range). Readings ``<= 0`` are invalid and ignored.
+  ``(1 - MAX_RANGE_MARGIN) * max_range`` (0.2 % below it: the Radish logs print several
+  codes just under the maximum, e.g. 81.83..81.91 or 32.759..32.767) is a *no return*: never
+  a hit, and by default it clears no free space either (``clear_no_returns``). Readings
+  ``<= 0`` are invalid and ignored.
+
+Mapping (:func:`map_log`) uses :mod:`brokenness.simulation.mapper`; :func:`wall_check` measures
+whether a log maps to single walls; :func:`broken_log_map` makes broken maps of the real
+building with the bump noise of :mod:`brokenness.simulation.bumps` and the ground truth of
+:mod:`brokenness.simulation.synthetic`.
 """
 
 from __future__ import annotations
