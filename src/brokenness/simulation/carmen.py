@@ -384,7 +384,7 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
     Examples
     --------
     >>> log = read_carmen("tests/data/carmen/orebro-corrected.log.gz")  # doctest: +SKIP
-    >>> log.n_scans, log.n_beams
+    >>> log.n_scans, log.n_beams  # doctest: +SKIP
     (237, 181)
     """
     p = Path(path)
