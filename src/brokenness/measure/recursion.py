@@ -85,6 +85,11 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 #: iFMI options of the recursion, under the user's: a remainder mixes partitions, so more
 #: rotation peaks are worth examining than for a single registration.
 _IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3}
+#: ... and a wider search, tried when a step finds nothing significant with the above.
+_IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05}
+#: The wider search is also tried when the best hypothesis explains less than this share of
+#: the cells left.
+_THOROUGH_BELOW = 0.5
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -233,6 +238,9 @@ def compute_brokenness(
     options = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     options.update(registration_options or {})
     registrar = make_registrar(method, seed=seed, **options)
+    thorough = None
+    if method == "ifmi":
+        thorough = make_registrar(method, **{**options, **_IFMI_THOROUGH_OPTIONS})
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
     n_total = points.shape[0]
@@ -242,6 +250,7 @@ def compute_brokenness(
         points,
         index,
         registrar,
+        thorough,
         threshold=threshold,
         min_cells=min_cells,
         significance=significance,
@@ -313,6 +322,7 @@ def _recurse(
     points: NDArray[np.float64],
     index: ReferenceIndex,
     registrar: Registrar,
+    thorough: Registrar | None,
     *,
     threshold: float,
     min_cells: int,
@@ -340,22 +350,33 @@ def _recurse(
         moving_states = remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
         if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
             break  # what is left is scattered noise: nothing to register
-        prepared = registrar.prepare_reference(
-            reference_states(index.reference, reference_occupied, uses_free)
-        )
-        fresh = registrar.candidates(prepared, moving_states, max_candidates)
-        # The hypotheses of the previous step stay in the running: a part seen there, beside
-        # the larger one that won, is often registered better than from what is left alone.
+        ref_states = reference_states(index.reference, reference_occupied, uses_free)
         left = np.flatnonzero(remaining)
-        best = best_hypothesis([*fresh, *carried], points[left], index, threshold)
-        carried = fresh
-        if best is None:
+        n = left.size
+        chance = n * p0
+        needed = max(min_cells, chance + significance * math.sqrt(chance * (1.0 - p0)))
+        best = None
+        # A step first asks the registration for its usual hypotheses (plus those of the
+        # previous step: a part seen there, beside the larger one that won, is often
+        # registered better than from what is left alone). If none is significant, or the
+        # best explains less than half of what is left, it asks once more with a wider search
+        # (``thorough``), and keeps the better answer.
+        pool: list[Candidate] = list(carried)
+        for attempt in (registrar, thorough):
+            if attempt is None:
+                continue
+            prepared = attempt.prepare_reference(ref_states)
+            limit = max_candidates if attempt is registrar else 2 * max_candidates
+            fresh = attempt.candidates(prepared, moving_states, limit)
+            pool += fresh
+            best = best_hypothesis(pool, points[left], index, threshold)
+            carried = fresh
+            if best is not None and np.count_nonzero(best[1]) >= max(needed, _THOROUGH_BELOW * n):
+                break
+        if best is None or np.count_nonzero(best[1]) < needed:
             break
         transform, agree, _confidence = best
-        k, n = int(np.count_nonzero(agree)), left.size
-        chance = n * p0
-        if k < min_cells or k < chance + significance * math.sqrt(chance * (1.0 - p0)):
-            break
+        k = int(np.count_nonzero(agree))
         members = left[with_fringe(transform, points[left], agree, index, merge_threshold)]
         moved = transform.apply(points[members])
         # Merge into an earlier partition whose transform explains this set as well.
