@@ -269,13 +269,18 @@ def broken_map_from_run(
                          shape=shape, origin=origin)
     broken = counts_to_map(counts)
     n_seg = len(bp.errors)
-    per_segment = np.stack([
-        scan_counts(bp.poses[bp.segment == j], run.ranges[bp.segment == j], run.angles,
-                    max_range=max_range, resolution=res, shape=shape, origin=origin,
-                    free_space=False).hits for j in range(n_seg)])
+    # label = the segment with the most hits in the cell (first one on ties); one grid at a time
+    best = np.zeros(shape, dtype=np.int32)
+    owner = np.zeros(shape, dtype=np.int16)
+    for j in range(n_seg):
+        sel = bp.segment == j
+        hits = scan_counts(bp.poses[sel], run.ranges[sel], run.angles, max_range=max_range,
+                           resolution=res, shape=shape, origin=origin, free_space=False).hits
+        more = hits > best
+        owner[more] = j
+        best[more] = hits[more]
     occupied = broken.occupied
-    labels = np.full(shape, NOT_OCCUPIED, dtype=np.int16)
-    labels[occupied] = np.argmax(per_segment[:, occupied], axis=0).astype(np.int16)
+    labels = np.where(occupied, owner, NOT_OCCUPIED).astype(np.int16)
     w_map = broken.cell_to_world_matrix()
     w_ref_inv = np.linalg.inv(reference.cell_to_world_matrix())
     transforms = [RigidTransform.from_matrix(w_ref_inv @ np.linalg.inv(e) @ w_map)
