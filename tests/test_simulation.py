@@ -209,6 +209,16 @@ def test_degree_mode_gives_honest_degree_and_true_transforms(degree):
     assert all(p.share >= 0.02 for p in sim.partitions)
     assert all(abs(b.theta) >= math.radians(10) - 1e-12 for b in sim.bumps)
     _verify_ground_truth(sim)
+    # the broken map's canvas holds every beam end point (nothing fell off)
+    run = sim.run
+    counts = scan_counts(sim.estimated_poses, run.ranges, run.angles,
+                         max_range=run.laser.max_range, resolution=0.05, shape=sim.map.shape,
+                         origin=sim.map.origin, free_space=False)
+    assert counts.dropped_hits == 0
+    # world part of partition j's transform undoes the accumulated bump rotations
+    for j, p in enumerate(sim.partitions):
+        turned = sum(b.theta for b in sim.bumps[:j])
+        assert abs(math.remainder(p.transform.world.rotation + turned, 2 * math.pi)) < 1e-9
     # a cell drawn by partition j is NOT on the reference's walls under another's transform
     if degree:
         index = ReferenceIndex.build(sim.reference)
