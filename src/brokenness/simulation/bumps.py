@@ -200,8 +200,9 @@ def draw_k_bumps(
     if spread:
         frac = (np.arange(1, k + 1) + rng.uniform(-1 / 3, 1 / 3, k)) / (k + 1)
         idx = np.clip(np.rint(lo + frac * (hi - lo)).astype(np.int64), lo, hi - 1)
-        idx = np.maximum.accumulate(idx + np.arange(k)) - np.arange(k)  # keep them distinct
-        idx = np.unique(np.clip(idx + np.arange(k) - np.arange(k), lo, hi - 1))
+        step = np.arange(k)
+        idx = np.maximum.accumulate(idx - step) + step  # strictly increasing: distinct scans
+        idx = np.unique(np.clip(idx, lo, hi - 1))
         if len(idx) < k:  # too short a run for a jittered spread: fall back to a draw
             idx = np.sort(rng.choice(np.arange(lo, hi), size=k, replace=False))
     else:
