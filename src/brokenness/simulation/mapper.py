@@ -254,28 +254,29 @@ def scan_counts(
         k_lo = np.ceil(k_lo).astype(np.int64)
         k_hi = np.floor(k_hi).astype(np.int64)
         n_samples = np.maximum(k_hi - k_lo + 1, 0)
+        # beams sorted by length and marched in blocks of similar length: a 2D (beam, step)
+        # block wastes little padding and needs no per-sample index arithmetic
         beams = np.flatnonzero(n_samples > 0)
-        csum = np.cumsum(n_samples[beams])
-        start = 0
+        beams = beams[np.argsort(n_samples[beams], kind="stable")]
+        lengths = n_samples[beams]
+        hit32 = hit_cell.astype(np.int32)
         pending: list[NDArray[np.int32]] = []
         n_pending = 0
+        start = 0
         while start < len(beams):
-            base = csum[start - 1] if start > 0 else 0
-            stop = int(np.searchsorted(csum, base + _CHUNK_SAMPLES, side="right"))
-            stop = max(stop, start + 1)
+            stop = min(start + max(_CHUNK_SAMPLES // int(lengths[start]), 1), len(beams))
+            while stop - start > 1 and (stop - start) * int(lengths[stop - 1]) > _CHUNK_SAMPLES:
+                stop = start + max((stop - start) // 2, 1)
             sel = beams[start:stop]
-            counts = n_samples[sel]
-            total = int(counts.sum())
-            first = np.cumsum(counts) - counts
-            k = (np.arange(total, dtype=np.int32)
-                 - np.repeat((first - k_lo[sel]).astype(np.int32), counts)).astype(np.float32)
-            col = np.floor(np.repeat(fx0[sel], counts) + k * np.repeat(dfx[sel], counts))
-            row = np.floor(np.repeat(fy0[sel], counts) + k * np.repeat(dfy[sel], counts))
-            cell = (rows - 1 - row.astype(np.int32)) * np.int32(cols) + col.astype(np.int32)
-            keep = np.empty(total, dtype=bool)
-            keep[1:] = cell[1:] != cell[:-1]  # each beam counts once per cell ...
-            keep[first] = True  # ... (a new beam starts afresh)
-            keep &= cell != np.repeat(hit_cell[sel].astype(np.int32), counts)  # end: a hit
+            width = int(lengths[stop - 1])
+            steps = np.arange(width, dtype=np.float32)[None, :]
+            k = k_lo[sel].astype(np.float32)[:, None] + steps
+            col = np.floor(fx0[sel, None] + k * dfx[sel, None]).astype(np.int32)
+            row = np.floor(fy0[sel, None] + k * dfy[sel, None]).astype(np.int32)
+            cell = (rows - 1 - row) * np.int32(cols) + col
+            keep = steps < n_samples[sel, None].astype(np.float32)  # padding of short beams
+            keep[:, 1:] &= cell[:, 1:] != cell[:, :-1]  # each beam counts once per cell
+            keep &= cell != hit32[sel, None]  # the end point's cell is a hit, not a miss
             pending.append(cell[keep])
             n_pending += len(pending[-1])
             if n_pending > _FLUSH_CELLS or stop >= len(beams):
