@@ -64,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
             resolution=args.resolution)
         name = f"{args.name}_{seed:04d}"
         paths = save_simulation(sim, args.out, name)
-        counted = sum(b.counted for b in sim.bumps)
-        print(f"{paths['map']}: expected degree {sim.expected_degree} "
-              f"({len(sim.bumps)} bumps, {counted} counted), {sim.map.shape[1]}x"
+        counted = sum(p.counted for p in sim.partitions)
+        print(f"{paths['map']}: expected degree {sim.expected_degree} ({len(sim.bumps)} bumps; "
+              f"{counted} of {len(sim.partitions)} partitions count), {sim.map.shape[1]}x"
               f"{sim.map.shape[0]} cells", file=sys.stdout)
     return 0
