@@ -39,7 +39,9 @@ Partitions are examined largest first. A partition *counts* when
    e.g. a shift along a featureless corridor).
 
 ``expected_degree`` = counted partitions - 1. A bump whose partition does not count is
-reported with ``counted = False`` and the reason.
+reported with ``counted = False`` and the reason. Partition 0 (before the first bump) is
+judged like the others: after an early bump it may be too small, and then the degree is the
+number of counted bumps minus one.
 """
 
 from __future__ import annotations
