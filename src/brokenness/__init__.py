@@ -21,6 +21,7 @@ from .io import MapWarning, load_map, resample_to_resolution, save_map
 from .masking import picture_distance
 from .measure import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition, compute_brokenness
 from .registration import Registration, register
+from .simulation import SimulatedMap, save_simulation, simulate_broken_map
 from .transform import RigidTransform
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "Partition",
     "Registration",
     "RigidTransform",
+    "SimulatedMap",
     "__version__",
     "compute_brokenness",
     "load_map",
@@ -47,4 +49,6 @@ __all__ = [
     "register",
     "resample_to_resolution",
     "save_map",
+    "save_simulation",
+    "simulate_broken_map",
 ]
