@@ -405,3 +405,42 @@ def test_small_reference_large_moving_map_is_pooled_more() -> None:
     assert abs(found.rotation_deg) < ROT_TOL_DEG
     assert found.translation == pytest.approx((-600.0, -700.0), abs=1.5)
     assert max(prepared.levels) > 1  # pooled more for the large moving map
+
+
+def test_translation_peaks_offer_every_copy_of_a_repeated_room():
+    """In a row of identical rooms a room fits each of them: with translation_peaks=3 the
+    hypotheses include other copies (60 cells apart), with 1 only the best peak."""
+    from brokenness.registration import IFMIRegistrar
+
+    ref = np.zeros((60, 200), np.int8)
+    for x0 in (10, 70, 130):  # three identical rooms
+        ref[10, x0 : x0 + 50] = ref[50, x0 : x0 + 50] = 1
+        ref[10:51, x0] = ref[10:51, x0 + 50] = 1
+        ref[10:30, x0 + 20] = 1
+    moving = ref[:, 60:130].copy()  # the middle room
+
+    def hypotheses(peaks: int) -> list[tuple[float, float, float]]:
+        reg = IFMIRegistrar(translation_peaks=peaks)
+        cands = reg.candidates(reg.prepare_reference(ref), moving, 12)
+        return [(c.transform.rotation_deg, c.transform.tx, c.transform.ty) for c in cands]
+
+    def copies(hyps: list[tuple[float, float, float]]) -> int:
+        """Largest number of hypotheses with one rotation and shifts a room apart."""
+        best = 0
+        for rot, tx, ty in hyps:
+            same = [h for h in hyps if abs(h[0] - rot) < 1 and abs(h[2] - ty) < 2]
+            apart = [h[1] - tx for h in same]
+            shifts = {round(d / 60) for d in apart if min(d % 60, 60 - d % 60) < 2}
+            best = max(best, len(shifts))
+        return best
+
+    assert copies(hypotheses(1)) == 1
+    assert copies(hypotheses(3)) >= 2
+
+
+def test_translation_peaks_option_is_checked():
+    from brokenness import ParameterError
+    from brokenness.registration import IFMIRegistrar
+
+    with pytest.raises(ParameterError):
+        IFMIRegistrar(translation_peaks=0)

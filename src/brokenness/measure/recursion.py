@@ -84,9 +84,9 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 
 #: iFMI options of the recursion, under the user's: a remainder mixes partitions, so more
 #: rotation peaks are worth examining than for a single registration.
-_IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3}
+_IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3, "translation_peaks": 3}
 #: ... and a wider search, tried when a step finds nothing significant with the above.
-_IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05}
+_IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05, "translation_peaks": 3}
 #: The wider search is also tried when the best hypothesis explains less than this share of
 #: the cells left.
 _THOROUGH_BELOW = 0.5
@@ -186,8 +186,8 @@ def compute_brokenness(
         Seed of the random-walk registration (iFMI uses no randomness).
     registration_options : dict, optional
         Keyword options of the registration method (see :func:`brokenness.register`). For
-        iFMI the recursion defaults to ``rotation_peaks=3, peak_ratio=0.3`` (a remainder mixes
-        partitions, so its angle spectrum has more than one peak worth trying).
+        iFMI the recursion defaults to ``rotation_peaks=3, peak_ratio=0.3, translation_peaks=3``
+        (a remainder mixes partitions, so its spectra have more than one peak worth trying).
 
     Returns
     -------

@@ -145,6 +145,9 @@ class IFMIRegistrar:
     rotation_peaks : int, default 2
         Angle-correlation peaks kept at most; each gives two hypotheses (``t`` and
         ``t + 180``).
+    translation_peaks : int, default 1
+        Translation-correlation peaks kept per rotation hypothesis (at least 3 cells apart):
+        in repetitive buildings the true shift is not always the highest peak.
     peak_ratio : float, default 0.5
         A peak after the highest is kept only if it reaches this fraction of the highest's
         height (0 keeps all ``rotation_peaks``). On our test maps a single correct rotation
@@ -184,6 +187,7 @@ class IFMIRegistrar:
         max_size: int = 160,
         rotation_size: int = 384,
         rotation_peaks: int = 2,
+        translation_peaks: int = 1,
         peak_ratio: float = 0.5,
         refine: bool = True,
         refine_iterations: int = 6,
@@ -208,6 +212,7 @@ class IFMIRegistrar:
         _check_int("max_size", max_size, 32, 1_000_000)
         _check_int("rotation_size", rotation_size, 32, 1_000_000)
         _check_int("rotation_peaks", rotation_peaks, 1, 64)
+        _check_int("translation_peaks", translation_peaks, 1, 16)
         ok = isinstance(peak_ratio, (int, float)) and not isinstance(peak_ratio, bool)
         if not (ok and 0.0 <= peak_ratio <= 1.0):
             raise ParameterError(f"ifmi: peak_ratio must be a number in [0, 1], got {peak_ratio!r}")
@@ -228,6 +233,7 @@ class IFMIRegistrar:
         self.max_size = int(max_size)
         self.rotation_size = int(rotation_size)
         self.rotation_peaks = int(rotation_peaks)
+        self.translation_peaks = int(translation_peaks)
         self.peak_ratio = float(peak_ratio)
         self.refine = refine
         self.refine_iterations = int(refine_iterations)
@@ -506,18 +512,41 @@ class IFMIRegistrar:
             for twin in (False, True):
                 cross = spec_ref * (spec if twin else np.conj(spec))
                 surface = scipy.fft.irfft2(cross, s=padded, workers=self.workers)
-                dy, dx, z = self._peak(surface)
-                if twin:
-                    # flipped canvas g(-u): canvas point v lands on reference point d - v
-                    matrix = _shift(dx, dy) @ _rot(math.pi) @ to_canvas
-                else:
-                    # canvas point v lands on reference point v + d, d in (-side, size_ref)
-                    if dy >= hr:
-                        dy -= padded[0]
-                    if dx >= wr:
-                        dx -= padded[1]
-                    matrix = _shift(dx, dy) @ to_canvas
-                out.append((matrix, z))
+                for dy, dx, z in self._peaks(surface, self.translation_peaks):
+                    if twin:
+                        # flipped canvas g(-u): canvas point v lands on reference point d - v
+                        matrix = _shift(dx, dy) @ _rot(math.pi) @ to_canvas
+                    else:
+                        # canvas point v lands on reference point v + d, d in (-side, size_ref)
+                        if dy >= hr:
+                            dy -= padded[0]
+                        if dx >= wr:
+                            dx -= padded[1]
+                        matrix = _shift(dx, dy) @ to_canvas
+                    out.append((matrix, z))
+        return out
+
+    @classmethod
+    def _peaks(cls, surface: NDArray[np.floating], count: int) -> list[tuple[float, float, float]]:
+        """The ``count`` highest peaks of a correlation surface, at least 3 cells apart.
+
+        Repetitive buildings (rows of equal rooms, long corridors) give several peaks of
+        similar height; the true one is not always the highest, so more than one translation
+        per rotation can be handed on to be scored on the cells.
+        """
+        if count == 1:
+            return [cls._peak(surface)]
+        work = np.array(surface, dtype=np.float32, copy=True)
+        low = float(work.min())
+        rows, cols = work.shape
+        out = []
+        for _ in range(count):
+            r, c, z = cls._peak(work)
+            out.append((r, c, z))
+            ri, ci = int(round(r)) % rows, int(round(c)) % cols
+            rr = np.arange(ri - 3, ri + 4) % rows
+            cc = np.arange(ci - 3, ci + 4) % cols
+            work[np.ix_(rr, cc)] = low
         return out
 
     @staticmethod
