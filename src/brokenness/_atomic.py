@@ -17,13 +17,17 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success it replaces ``path`` atomically.
 
     On any exception (KeyboardInterrupt included) the temporary file is removed and
-    ``path`` is left as it was.
+    ``path`` is left as it was. A new file gets mode 0644, a replaced one keeps its mode.
     """
     target = Path(path)
+    # a new file gets the usual 0644 (mkstemp's 0600 would hide results from other users);
+    # a file that is replaced keeps its mode
+    mode = target.stat().st_mode & 0o7777 if target.exists() else 0o644
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, mode)
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

@@ -6,10 +6,9 @@ command-line interface can print it as is.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
+from .. import _atomic
 from ..errors import MapError, MapFormatError
 
 __all__ = ["MapWarning", "atomic_write_bytes", "one_line", "read_file_bytes", "require_file"]
@@ -84,26 +83,6 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     if not folder.is_dir():
         raise MapError(f"{path}: cannot write, folder {folder} does not exist")
     try:
-        mode = path.stat().st_mode & 0o7777 if path.exists() else 0o644
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
+        _atomic.atomic_write_bytes(path, data)
     except OSError as exc:
         raise MapError(f"{path}: cannot write ({one_line(exc.strerror or exc)})") from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise MapError(f"{path}: cannot write ({one_line(exc.strerror or exc)})") from None
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise

@@ -29,7 +29,6 @@ import io
 import json
 import math
 import os
-import tempfile
 import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -40,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import __version__
+from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError
 from ..grid import OccupancyMap
 from ..measure.result import BrokennessResult
@@ -224,25 +224,6 @@ def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
         else:
             out[key] = value
     return out
-
-
-def atomic_write(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename).
-
-    On any exception, including :class:`KeyboardInterrupt`, the temporary file is removed
-    and ``path`` is left as it was.
-    """
-    dest = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, dest)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _zip_bytes(members: Mapping[str, bytes]) -> bytes:
