@@ -255,3 +255,18 @@ def test_broken_and_noisy_map_keeps_its_degree(maps, name):
     pairs = _match(result, truths)
     assert sorted(j for j, _ in pairs) == [0, 1]
     assert all(err < 2.0 for _, err in pairs), pairs
+
+
+def test_nothing_found_is_said_not_hidden():
+    """Scattered dots against a room: no partition; degree 0 comes with a warning."""
+    from brokenness import NothingFoundWarning
+
+    room = np.zeros((80, 80), bool)
+    room[10, 10:70] = room[70, 10:70] = room[10:70, 10] = room[10:70, 70] = True
+    room[10:40, 40] = True
+    dots = np.zeros((80, 80), bool)
+    dots[np.random.default_rng(0).random((80, 80)) < 0.01] = True
+    with pytest.warns(NothingFoundWarning):
+        result = compute_brokenness(dots, room)
+    assert result.degree == 0 and result.partitions == ()
+    assert result.unassigned_fraction == 1.0

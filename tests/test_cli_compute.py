@@ -97,3 +97,11 @@ def test_console_script_runs(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["degree"] == 0
+
+
+def test_warnings_are_one_line(capsys):
+    depot = ROOT / "tests" / "data" / "depot.yaml"
+    assert main(["compute", str(depot), str(depot)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err and all(line.startswith("brokenness: warning: ") for line in err)
+    assert any("free_thresh" in line for line in err)

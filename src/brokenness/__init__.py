@@ -15,7 +15,14 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .errors import BrokennessError, MapError, MapFormatError, MapSizeError, ParameterError
+from .errors import (
+    BrokennessError,
+    MapError,
+    MapFormatError,
+    MapSizeError,
+    NothingFoundWarning,
+    ParameterError,
+)
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from .io import MapWarning, load_map, resample_to_resolution, save_map
 from .masking import picture_distance
@@ -36,6 +43,7 @@ __all__ = [
     "MapFormatError",
     "MapSizeError",
     "MapWarning",
+    "NothingFoundWarning",
     "OccupancyMap",
     "ParameterError",
     "Partition",

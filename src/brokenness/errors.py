@@ -6,7 +6,14 @@ caller (and the command-line interface) can catch one type and show a one-line m
 
 from __future__ import annotations
 
-__all__ = ["BrokennessError", "MapError", "MapFormatError", "MapSizeError", "ParameterError"]
+__all__ = [
+    "BrokennessError",
+    "MapError",
+    "MapFormatError",
+    "MapSizeError",
+    "NothingFoundWarning",
+    "ParameterError",
+]
 
 
 class BrokennessError(Exception):
@@ -27,3 +34,12 @@ class MapSizeError(MapError):
 
 class ParameterError(BrokennessError, ValueError):
     """An option passed to an algorithm is out of its valid range."""
+
+
+class NothingFoundWarning(UserWarning):
+    """No part of the map agrees with the reference under any transform that was found.
+
+    :func:`brokenness.compute_brokenness` then returns degree 0 with no partition and every
+    occupied cell unassigned: the degree was not measured (the registration failed, or the
+    map does not show the reference's place).
+    """

@@ -137,3 +137,8 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
         f"unassigned: {result.unassigned_cells} of {result.occupied_cells} occupied cells "
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
+    if not result.partitions:
+        console.print(
+            "[bold]no part of the map agrees with the reference under any transform found: "
+            "the degree was not measured[/bold] (registration failed, or not the same place?)"
+        )

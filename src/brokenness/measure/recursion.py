@@ -55,12 +55,13 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import MapError, ParameterError
+from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex, cell_points, unmatched_reference
 from ..registration.base import Candidate, Registrar
@@ -290,6 +291,13 @@ def compute_brokenness(
         "registration_options": dict(registration_options or {}),
         "working_resolution": working.resolution,
     }
+    if not partitions:
+        warnings.warn(
+            "no part of the map agrees with the reference under any transform found (every "
+            "occupied cell is unassigned): the degree was not measured",
+            NothingFoundWarning,
+            stacklevel=2,
+        )
     return BrokennessResult(
         degree=max(len(partitions) - 1, 0),
         partitions=partitions,
