@@ -41,10 +41,12 @@ def main() -> None:
     H, W = h + 2 * pad, w + 2 * pad
     occupied = np.zeros((H, W), bool)
     free = np.zeros((H, W), bool)
-    for (a, b), motion in zip(zip(cuts[:-1], cuts[1:]), motions, strict=True):
+    for (a, b), motion in zip(zip(cuts[:-1], cuts[1:], strict=True), motions, strict=True):
         piece = np.zeros((h, w), np.uint8)
         piece[:, a:b] = (ref.states[:, a:b] + 2).astype(np.uint8)  # 1 unknown, 2 free, 3 occupied
-        moved = cv2.warpAffine(piece, shift.compose(motion).matrix[:2], (W, H), flags=cv2.INTER_NEAREST)
+        moved = cv2.warpAffine(
+            piece, shift.compose(motion).matrix[:2], (W, H), flags=cv2.INTER_NEAREST
+        )
         occupied |= moved == OCCUPIED + 2
         free |= moved == FREE + 2
     states = np.full((H, W), UNKNOWN, np.int8)

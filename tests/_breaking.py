@@ -15,7 +15,9 @@ from brokenness import OccupancyMap, RigidTransform
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 
 
-def move_about(center: tuple[float, float], degrees: float, shift: tuple[float, float]) -> RigidTransform:
+def move_about(
+    center: tuple[float, float], degrees: float, shift: tuple[float, float]
+) -> RigidTransform:
     """Rotation by ``degrees`` about ``center`` (x, y), then a shift: ref cells -> map cells."""
     rot = RigidTransform(np.radians(degrees))
     c = np.asarray(center, float)
@@ -57,7 +59,9 @@ def break_map(
     free = np.zeros((h, w), bool)
     for region, motion in zip(regions, motions, strict=True):
         src = np.where(region, reference.states + 1, 0).astype(np.uint8)  # 0 outside, 1..3 inside
-        moved = cv2.warpAffine(src, motion.matrix[:2], (w, h), flags=cv2.INTER_NEAREST, borderValue=0)
+        moved = cv2.warpAffine(
+            src, motion.matrix[:2], (w, h), flags=cv2.INTER_NEAREST, borderValue=0
+        )
         occupied |= moved == OCCUPIED + 1
         free |= moved == FREE + 1
     states = np.full((h, w), UNKNOWN, np.int8)

@@ -31,7 +31,13 @@ def test_states_are_read_only_and_copied():
 
 @pytest.mark.parametrize(
     "bad",
-    [np.zeros(5), np.array([[101]], np.int16), np.array([[np.nan]]), np.array([[1.5]]), np.zeros((0, 4))],
+    [
+        np.zeros(5),
+        np.array([[101]], np.int16),
+        np.array([[np.nan]]),
+        np.array([[1.5]]),
+        np.zeros((0, 4)),
+    ],
 )
 def test_bad_arrays_raise_map_error(bad):
     with pytest.raises(MapError):

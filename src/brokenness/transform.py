@@ -34,7 +34,7 @@ def wrap_angle(angle: float) -> float:
     wrapped = math.remainder(float(angle), 2.0 * math.pi)
     if wrapped <= -math.pi:
         wrapped += 2.0 * math.pi
-    return wrapped
+    return wrapped + 0.0  # no negative zero
 
 
 @dataclass(frozen=True)
