@@ -61,10 +61,10 @@ from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
 from ..masking import ReferenceIndex
-from .bumps import Bump, draw_bumps, draw_k_bumps
+from .bumps import Bump
 from .laser import Laser, LaserRun
 from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
-from .synthetic import _CANVAS_MARGIN, SimulatedMap, broken_map_from_run
+from .synthetic import _CANVAS_MARGIN, SimulatedMap, draw_broken_map
 
 __all__ = [
     "MAX_RANGE_MARGIN",
@@ -772,39 +772,13 @@ def broken_log_map(
     reference = OccupancyMap(reference.states, reference.resolution, reference.origin,
                              log.source)
     index = ReferenceIndex.build(reference)
-    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
-
-    def attempt(k: int) -> list[Bump]:
-        rng = np.random.default_rng([seed, 2, k])
-        if degree is not None:
-            return draw_k_bumps(log.n_scans, int(degree), radius=bump_radius,
-                                max_rotation=max_rot, min_rotation=min_rot, rng=rng)
-        if bump_probability is not None:
-            return draw_bumps(log.n_scans, float(bump_probability), radius=bump_radius,
-                              max_rotation=max_rot, rng=rng)
-        if isinstance(bumps, int | np.integer):
-            return draw_k_bumps(log.n_scans, int(bumps), radius=bump_radius,
-                                max_rotation=max_rot, min_rotation=min_rot, rng=rng,
-                                spread=False)
-        return list(bumps or [])
-
-    tries = max_attempts if degree is not None else 1
-    seen: list[int] = []
-    outcome = None
-    for k in range(tries):
-        outcome = broken_map_from_run(
-            run, reference, attempt(k), extent=extent, index=index, threshold=threshold,
-            merge_threshold=merge_threshold, min_partition_fraction=min_partition_fraction,
-            min_partition_cells=min_partition_cells)
-        seen.append(outcome[1])
-        if degree is None or outcome[1] == degree:
-            break
-    assert outcome is not None
+    outcome, attempts = draw_broken_map(
+        run, reference, index, extent, seed=seed, degree=degree, bumps=bumps,
+        bump_probability=bump_probability, bump_radius=bump_radius, max_rotation=max_rotation,
+        min_rotation=min_rotation, threshold=threshold, merge_threshold=merge_threshold,
+        min_partition_fraction=min_partition_fraction, min_partition_cells=min_partition_cells,
+        max_attempts=max_attempts, hint=f"{log.source or 'the log'}: try a lower degree")
     broken, expected, parts, labels, judged, bumped = outcome
-    if degree is not None and expected != degree:
-        raise ParameterError(
-            f"could not make a map of degree {degree} from {log.source or 'the log'} in "
-            f"{max_attempts} draws (got degrees {sorted(set(seen))}); try a lower degree")
     parameters: dict[str, Any] = {
         "seed": seed, "degree": degree,
         "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
@@ -814,7 +788,7 @@ def broken_log_map(
         "scans": log.n_scans, "beams": log.n_beams, "max_range": limit,
         "clear_no_returns": clear_no_returns, "threshold": threshold,
         "merge_threshold": merge_threshold, "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells, "attempts": len(seen),
+        "min_partition_cells": min_partition_cells, "attempts": attempts,
     }
     broken = OccupancyMap(broken.states, broken.resolution, broken.origin, log.source)
     return SimulatedMap(

@@ -303,6 +303,73 @@ def broken_map_from_run(
     return broken, sum(counted) - 1, parts, labels, judged, bp
 
 
+def draw_broken_map(
+    run: LaserRun,
+    reference: OccupancyMap,
+    index: ReferenceIndex,
+    extent: tuple[float, float, float, float],
+    *,
+    seed: int,
+    degree: int | None,
+    bumps: int | Sequence[Bump] | None,
+    bump_probability: float | None,
+    bump_radius: float,
+    max_rotation: float,
+    min_rotation: float,
+    threshold: float,
+    merge_threshold: float,
+    min_partition_fraction: float,
+    min_partition_cells: int,
+    max_attempts: int,
+    hint: str,
+) -> tuple[Any, int]:
+    """Draw bumps for a run and map it with them; with ``degree``, redraw until it counts.
+
+    Shared by synthetic runs and real logs. Bumps come from ``degree`` (exactly that many,
+    redrawn up to ``max_attempts`` times until the honest expected degree equals it),
+    ``bump_probability`` (the paper's model), ``bumps`` (a count drawn once, or explicit
+    bumps). Angles are in degrees. Returns the outcome of :func:`broken_map_from_run` and
+    the number of draws.
+
+    Raises
+    ------
+    ParameterError
+        If no draw gives the requested degree (``hint`` says what to try).
+    """
+    n_scans = len(run.true_poses)
+    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
+
+    def attempt(k: int) -> list[Bump]:
+        rng = np.random.default_rng([seed, 2, k])
+        if degree is not None:
+            return draw_k_bumps(n_scans, int(degree), radius=bump_radius, max_rotation=max_rot,
+                                min_rotation=min_rot, rng=rng)
+        if bump_probability is not None:
+            return draw_bumps(n_scans, float(bump_probability), radius=bump_radius,
+                              max_rotation=max_rot, rng=rng)
+        if isinstance(bumps, int | np.integer):
+            return draw_k_bumps(n_scans, int(bumps), radius=bump_radius, max_rotation=max_rot,
+                                min_rotation=min_rot, rng=rng, spread=False)
+        return list(bumps or [])
+
+    tries = max_attempts if degree is not None else 1
+    seen: list[int] = []
+    outcome = None
+    for k in range(tries):
+        outcome = broken_map_from_run(
+            run, reference, attempt(k), extent=extent, index=index, threshold=threshold,
+            merge_threshold=merge_threshold, min_partition_fraction=min_partition_fraction,
+            min_partition_cells=min_partition_cells)
+        seen.append(outcome[1])
+        if degree is None or outcome[1] == degree:
+            break
+    if outcome is None or (degree is not None and outcome[1] != degree):
+        raise ParameterError(
+            f"could not make a map of degree {degree} in {max_attempts} draws (got degrees "
+            f"{sorted(set(seen))}); {hint}")
+    return outcome, len(seen)
+
+
 def simulate_broken_map(
     *,
     seed: int = 0,
@@ -406,38 +473,13 @@ def simulate_broken_map(
         shape=shape, origin=origin))
     index = ReferenceIndex.build(reference)
     n_scans = len(run.true_poses)
-    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
-
-    def attempt(k: int) -> list[Bump]:
-        rng = np.random.default_rng([seed, 2, k])
-        if degree is not None:
-            return draw_k_bumps(n_scans, int(degree), radius=bump_radius, max_rotation=max_rot,
-                                min_rotation=min_rot, rng=rng)
-        if bump_probability is not None:
-            return draw_bumps(n_scans, float(bump_probability), radius=bump_radius,
-                              max_rotation=max_rot, rng=rng)
-        if isinstance(bumps, int | np.integer):
-            return draw_k_bumps(n_scans, int(bumps), radius=bump_radius, max_rotation=max_rot,
-                                min_rotation=min_rot, rng=rng, spread=False)
-        return list(bumps or [])
-
-    tries = max_attempts if degree is not None else 1
-    outcome = None
-    seen: list[int] = []
-    for k in range(tries):
-        outcome = broken_map_from_run(
-            run, reference, attempt(k), extent=extent, index=index, threshold=threshold,
-            merge_threshold=merge_threshold, min_partition_fraction=min_partition_fraction,
-            min_partition_cells=min_partition_cells)
-        seen.append(outcome[1])
-        if degree is None or outcome[1] == degree:
-            break
-    assert outcome is not None
+    outcome, attempts = draw_broken_map(
+        run, reference, index, extent, seed=seed, degree=degree, bumps=bumps,
+        bump_probability=bump_probability, bump_radius=bump_radius, max_rotation=max_rotation,
+        min_rotation=min_rotation, threshold=threshold, merge_threshold=merge_threshold,
+        min_partition_fraction=min_partition_fraction, min_partition_cells=min_partition_cells,
+        max_attempts=max_attempts, hint="use a larger building or a lower degree")
     broken, expected, parts, labels, judged, bp = outcome
-    if degree is not None and expected != degree:
-        raise ParameterError(
-            f"could not make a map of degree {degree} in {max_attempts} draws (got degrees "
-            f"{sorted(set(seen))}); use a larger building or a lower degree")
     parameters: dict[str, Any] = {
         "seed": seed, "degree": degree,
         "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
@@ -449,7 +491,7 @@ def simulate_broken_map(
         "spacing": spacing, "pose_sigma": [pose_sigma[0], math.degrees(pose_sigma[1])],
         "threshold": threshold, "merge_threshold": merge_threshold,
         "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells, "attempts": len(seen), "scans": n_scans,
+        "min_partition_cells": min_partition_cells, "attempts": attempts, "scans": n_scans,
     }
     return SimulatedMap(
         map=broken, reference=reference, expected_degree=expected, partitions=parts,
