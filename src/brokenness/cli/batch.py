@@ -115,8 +115,7 @@ def run(args: argparse.Namespace) -> int:
     failed = [r for r in summary.rows if r.status == STATUS_ERROR]
     out = Console(file=sys.stdout, soft_wrap=True)
     out.print(
-        f"{len(summary.rows)} pairs: {done} evaluated, {skipped} already done, "
-        f"{len(failed)} failed"
+        f"{len(summary.rows)} pairs: {done} evaluated, {skipped} already done, {len(failed)} failed"
     )
     for row in failed[:10]:
         where = f"row {row.row} ({escape(row.map)})"

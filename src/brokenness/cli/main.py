@@ -12,7 +12,7 @@ import importlib
 import sys
 import warnings
 from collections.abc import Sequence
-from typing import Any, TextIO
+from typing import Any, NoReturn, TextIO
 
 from .. import __version__
 from ..errors import BrokennessError
@@ -27,7 +27,7 @@ EXIT_BAD_INPUT = 2
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 2 (argparse's own default code)
+    def error(self, message: str) -> NoReturn:  # one line, exit 2 (argparse's default code)
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
 
 

@@ -25,23 +25,61 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first map (default 0)")
     mode = p.add_mutually_exclusive_group()
-    mode.add_argument("--degree", type=int, default=None,
-                      help="exact expected degree K (bumps redrawn until all K count)")
-    mode.add_argument("--bumps", type=int, default=None,
-                      help="exactly K bumps, drawn once (the expected degree may be lower)")
-    mode.add_argument("--bump-probability", type=float, default=None, metavar="P",
-                      help="the paper's model: each scan bumps with probability P")
-    p.add_argument("--bump-radius", type=float, default=1.0, metavar="R",
-                   help="shift d ~ U[0, R] metres (default 1)")
-    p.add_argument("--max-rotation", type=float, default=180.0, metavar="DEG",
-                   help="largest bump rotation, degrees (default 180: U[0, 360))")
-    p.add_argument("--min-rotation", type=float, default=10.0, metavar="DEG",
-                   help="smallest bump rotation with --degree/--bumps, degrees (default 10)")
-    p.add_argument("--size", type=float, default=15.0, metavar="METRES",
-                   help="building width and height (default 15)")
+    mode.add_argument(
+        "--degree",
+        type=int,
+        default=None,
+        help="exact expected degree K (bumps redrawn until all K count)",
+    )
+    mode.add_argument(
+        "--bumps",
+        type=int,
+        default=None,
+        help="exactly K bumps, drawn once (the expected degree may be lower)",
+    )
+    mode.add_argument(
+        "--bump-probability",
+        type=float,
+        default=None,
+        metavar="P",
+        help="the paper's model: each scan bumps with probability P",
+    )
+    p.add_argument(
+        "--bump-radius",
+        type=float,
+        default=1.0,
+        metavar="R",
+        help="shift d ~ U[0, R] metres (default 1)",
+    )
+    p.add_argument(
+        "--max-rotation",
+        type=float,
+        default=180.0,
+        metavar="DEG",
+        help="largest bump rotation, degrees (default 180: U[0, 360))",
+    )
+    p.add_argument(
+        "--min-rotation",
+        type=float,
+        default=10.0,
+        metavar="DEG",
+        help="smallest bump rotation with --degree/--bumps, degrees (default 10)",
+    )
+    p.add_argument(
+        "--size",
+        type=float,
+        default=15.0,
+        metavar="METRES",
+        help="building width and height (default 15)",
+    )
     p.add_argument("--resolution", type=float, default=0.05, help="metres per cell (0.05)")
-    p.add_argument("--count", type=int, default=1, metavar="N",
-                   help="make N maps with seeds SEED..SEED+N-1 (default 1)")
+    p.add_argument(
+        "--count",
+        type=int,
+        default=1,
+        metavar="N",
+        help="make N maps with seeds SEED..SEED+N-1 (default 1)",
+    )
     p.add_argument("--name", default="sim", help="file name prefix (default 'sim')")
     p.set_defaults(func=run)
 
@@ -58,14 +96,23 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--seed must be >= 0, got {args.seed}")
     for seed in range(args.seed, args.seed + args.count):
         sim = simulate_broken_map(
-            seed=seed, degree=args.degree, bumps=args.bumps,
-            bump_probability=args.bump_probability, bump_radius=args.bump_radius,
-            max_rotation=args.max_rotation, min_rotation=args.min_rotation, size=args.size,
-            resolution=args.resolution)
+            seed=seed,
+            degree=args.degree,
+            bumps=args.bumps,
+            bump_probability=args.bump_probability,
+            bump_radius=args.bump_radius,
+            max_rotation=args.max_rotation,
+            min_rotation=args.min_rotation,
+            size=args.size,
+            resolution=args.resolution,
+        )
         name = f"{args.name}_{seed:04d}"
         paths = save_simulation(sim, args.out, name)
         counted = sum(p.counted for p in sim.partitions)
-        print(f"{paths['map']}: expected degree {sim.expected_degree} ({len(sim.bumps)} bumps; "
-              f"{counted} of {len(sim.partitions)} partitions count), {sim.map.shape[1]}x"
-              f"{sim.map.shape[0]} cells", file=sys.stdout)
+        print(
+            f"{paths['map']}: expected degree {sim.expected_degree} ({len(sim.bumps)} bumps; "
+            f"{counted} of {len(sim.partitions)} partitions count), {sim.map.shape[1]}x"
+            f"{sim.map.shape[0]} cells",
+            file=sys.stdout,
+        )
     return 0

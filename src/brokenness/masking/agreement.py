@@ -173,9 +173,8 @@ def unmatched_reference(
     hit = np.zeros((h, w), dtype=np.uint8)
     hit[rows[inside], cols[inside]] = 1
     radius = int(np.floor(threshold))
-    if radius > 0:
-        hit = cv2.dilate(hit, manhattan_ball(radius))
-    return reference_occupied & (hit == 0)
+    near = cv2.dilate(hit, manhattan_ball(radius)) if radius > 0 else hit
+    return reference_occupied & (near == 0)
 
 
 def manhattan_ball(radius: int) -> NDArray[np.uint8]:

@@ -32,7 +32,8 @@ def manhattan_distance_map(mask: ArrayLike) -> NDArray[np.float32]:
     if not m.any():
         return np.full(m.shape, np.inf, dtype=np.float32)
     # OpenCV measures the distance to the nearest zero pixel.
-    return cv2.distanceTransform(np.where(m, 0, 1).astype(np.uint8), cv2.DIST_L1, 3)
+    distance = cv2.distanceTransform(np.where(m, 0, 1).astype(np.uint8), cv2.DIST_L1, 3)
+    return np.asarray(distance, dtype=np.float32)
 
 
 def lookup_distance(distance_map: NDArray[np.float32], points: ArrayLike) -> NDArray[np.float32]:

@@ -236,7 +236,7 @@ def compute_brokenness(
     index = ReferenceIndex.build(ref)  # raises for an empty reference
 
     working, to_working = _common_resolution(original, ref)
-    options = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
+    options: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     options.update(registration_options or {})
     registrar = make_registrar(method, seed=seed, **options)
     thorough = None
@@ -260,7 +260,9 @@ def compute_brokenness(
         max_candidates=max_candidates,
     )
     found = reassign(found, points, index, threshold, min_cells)
-    partitions, labels_working = assemble(found, points, working, to_working, original, ref, index)
+    found_partitions, labels_working = assemble(
+        found, points, working, to_working, original, ref, index
+    )
     labels = labels_in_original_grid(labels_working, working, to_working, original)
     n_occupied = original.n_occupied
     assigned = int(np.count_nonzero(labels >= 0))
@@ -277,7 +279,7 @@ def compute_brokenness(
             displacement_m=p.displacement_m,
             step_seconds=p.step_seconds,
         )
-        for p in partitions
+        for p in found_partitions
     )
     parameters = {
         "threshold": threshold,

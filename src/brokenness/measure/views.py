@@ -90,4 +90,6 @@ def walls_connected(reference: OccupancyMap) -> bool:
     reference itself is dotted (a sparse probabilistic map), they are structure and stay.
     """
     occupied = reference.occupied
-    return np.count_nonzero(isolated_cells(occupied)) <= ISOLATED_SHARE * np.count_nonzero(occupied)
+    return bool(
+        np.count_nonzero(isolated_cells(occupied)) <= ISOLATED_SHARE * np.count_nonzero(occupied)
+    )

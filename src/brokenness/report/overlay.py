@@ -118,9 +118,7 @@ def overlay_image(
     """
     labels = np.asarray(result.labels)
     if labels.shape != map.shape:
-        raise MapError(
-            f"result labels have shape {labels.shape} but the map has shape {map.shape}"
-        )
+        raise MapError(f"result labels have shape {labels.shape} but the map has shape {map.shape}")
     t0 = result.partitions[0].transform if result.partitions else RigidTransform.identity()
     rgb = np.empty(map.shape + (3,), dtype=np.float32)
     rgb[...] = _UNKNOWN

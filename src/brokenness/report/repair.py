@@ -60,9 +60,7 @@ def _warp(enc: NDArray[np.uint8], transform: RigidTransform, shape: tuple[int, i
 def _check(result: BrokennessResult, map: OccupancyMap) -> NDArray[np.int16]:
     labels = np.asarray(result.labels)
     if labels.shape != map.shape:
-        raise MapError(
-            f"result labels have shape {labels.shape} but the map has shape {map.shape}"
-        )
+        raise MapError(f"result labels have shape {labels.shape} but the map has shape {map.shape}")
     return labels
 
 

@@ -171,9 +171,7 @@ def group_table(
         unknown = [k for k in keys if k not in names]
         if unknown:
             have = ", ".join(names) if names else "none"
-            raise ParameterError(
-                f"no result has the label {unknown[0]!r} (labels: {have})"
-            )
+            raise ParameterError(f"no result has the label {unknown[0]!r} (labels: {have})")
     groups: dict[tuple[str | None, ...], list[ResultEntry]] = {}
     for e in entries:
         groups.setdefault(tuple(e.labels.get(k) for k in keys), []).append(e)

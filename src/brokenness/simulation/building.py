@@ -206,8 +206,11 @@ def _tour(
             if nxt in seen:
                 continue
             seen.add(nxt)
-            here, there = (d.approach[0], d.approach[1]) if d.rooms[0] == r else (
-                d.approach[1], d.approach[0])
+            here, there = (
+                (d.approach[0], d.approach[1])
+                if d.rooms[0] == r
+                else (d.approach[1], d.approach[0])
+            )
             if rooms[r].corridor:  # walk along the corridor's centre line to the door
                 route.append(_corridor_point(rooms[r], here))
             route.extend([here, there])
@@ -228,12 +231,16 @@ def _corridor_point(room: Room, p: tuple[float, float]) -> tuple[float, float]:
     return (p[0], 0.5 * (y0 + y1))
 
 
-def _segment_distance(p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]
-                      ) -> NDArray[np.float64]:
+def _segment_distance(
+    p: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Distance from point ``p`` to each segment ``a[i]-b[i]``."""
     ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab),
-                                                                1e-12), 0.0, 1.0)
+    t = np.clip(
+        np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12),
+        0.0,
+        1.0,
+    )
     return np.linalg.norm(a + t[:, None] * ab - p, axis=1)
 
 
@@ -284,9 +291,13 @@ def generate_building(
     """
     if not (width >= 6.0 and height >= 6.0):
         raise ParameterError(f"a building must be at least 6 m x 6 m, got {width} x {height}")
-    for name, v in [("truth_resolution", truth_resolution), ("wall_thickness", wall_thickness),
-                    ("door_width", door_width), ("corridor_width", corridor_width),
-                    ("min_room", min_room)]:
+    for name, v in [
+        ("truth_resolution", truth_resolution),
+        ("wall_thickness", wall_thickness),
+        ("door_width", door_width),
+        ("corridor_width", corridor_width),
+        ("min_room", min_room),
+    ]:
         if not (math.isfinite(v) and v > 0):
             raise ParameterError(f"{name} must be a positive number, got {v!r}")
     rng = np.random.default_rng(seed)
@@ -303,15 +314,18 @@ def generate_building(
     cols, rows = int(math.ceil(width / truth_resolution)), int(math.ceil(height / truth_resolution))
     grid = np.zeros((rows, cols), dtype=np.uint8)
 
-    def to_px(x: NDArray[np.float64] | float, y: NDArray[np.float64] | float
-              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def to_px(
+        x: NDArray[np.float64] | float, y: NDArray[np.float64] | float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return (np.asarray(x) / truth_resolution, rows - np.asarray(y) / truth_resolution)
 
     def fill_rect(r: Rect, value: int) -> None:
         c0, r1 = to_px(r[0], r[1])
         c1, r0 = to_px(r[2], r[3])
-        grid[max(int(np.floor(r0)), 0):int(np.ceil(r1)), max(int(np.floor(c0)), 0):int(np.ceil(c1))
-             ] = value
+        grid[
+            max(int(np.floor(r0)), 0) : int(np.ceil(r1)),
+            max(int(np.floor(c0)), 0) : int(np.ceil(c1)),
+        ] = value
 
     def fill_poly(pts: NDArray[np.float64]) -> None:
         px, py = to_px(pts[:, 0], pts[:, 1])
@@ -319,8 +333,12 @@ def generate_building(
         cv2.fillPoly(grid, [poly], 1, lineType=cv2.LINE_8, shift=4)
 
     # outer walls and split walls
-    for r in [(0, 0, width, t), (0, height - t, width, height), (0, 0, t, height),
-              (width - t, 0, width, height)] + plan.walls:
+    for r in [
+        (0, 0, width, t),
+        (0, height - t, width, height),
+        (0, 0, t, height),
+        (width - t, 0, width, height),
+    ] + plan.walls:
         fill_rect(r, 1)
     for d in doors:
         fill_rect(d.gap, 0)
@@ -356,14 +374,23 @@ def generate_building(
             radius = 0.5 * float(np.hypot(*size))
             if w < 2 * radius + 0.8 or h < 2 * radius + 0.8:
                 continue
-            p = np.array([rng.uniform(x0 + radius + 0.3, x1 - radius - 0.3),
-                          rng.uniform(y0 + radius + 0.3, y1 - radius - 0.3)])
+            p = np.array(
+                [
+                    rng.uniform(x0 + radius + 0.3, x1 - radius - 0.3),
+                    rng.uniform(y0 + radius + 0.3, y1 - radius - 0.3),
+                ]
+            )
             if _segment_distance(p, seg_a, seg_b).min() < radius + 0.45:
                 continue
             if rng.random() < 0.3:
                 cx_, cy_ = to_px(p[0], p[1])
-                cv2.circle(grid, (int(round(float(cx_))), int(round(float(cy_)))),
-                           max(1, int(round(0.5 * size[0] / truth_resolution))), 1, -1)
+                cv2.circle(
+                    grid,
+                    (int(round(float(cx_))), int(round(float(cy_)))),
+                    max(1, int(round(0.5 * size[0] / truth_resolution))),
+                    1,
+                    -1,
+                )
             else:
                 ang = rng.uniform(0, math.pi)
                 c, s = math.cos(ang), math.sin(ang)

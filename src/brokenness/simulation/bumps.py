@@ -150,8 +150,14 @@ def draw_bumps(
     out = []
     for i in np.flatnonzero(events):
         theta = _theta(rng, max_rotation)
-        out.append(Bump(int(i), theta, float(rng.uniform(0.0, radius)),
-                        float(rng.uniform(0.0, 2.0 * math.pi))))
+        out.append(
+            Bump(
+                int(i),
+                theta,
+                float(rng.uniform(0.0, radius)),
+                float(rng.uniform(0.0, 2.0 * math.pi)),
+            )
+        )
     return out
 
 
@@ -210,8 +216,14 @@ def draw_k_bumps(
     out = []
     for i in idx:
         theta = _theta(rng, max_rotation, min_rotation)
-        out.append(Bump(int(i), theta, float(rng.uniform(0.0, radius)),
-                        float(rng.uniform(0.0, 2.0 * math.pi))))
+        out.append(
+            Bump(
+                int(i),
+                theta,
+                float(rng.uniform(0.0, radius)),
+                float(rng.uniform(0.0, 2.0 * math.pi)),
+            )
+        )
     return out
 
 
@@ -243,7 +255,7 @@ def apply_bumps(poses: ArrayLike, bumps: Sequence[Bump]) -> BumpedPoses:
         rot_about_q[:2, 2] = q[:2] - rot_about_q[:2, :2] @ q[:2]
         shift = rigid_matrix(0.0, b.d * math.cos(b.direction), b.d * math.sin(b.direction))
         errors.append(shift @ rot_about_q @ e)
-        segment[b.scan:] = j + 1
+        segment[b.scan :] = j + 1
     out = np.empty_like(p)
     for j, e in enumerate(errors):
         sel = segment == j

@@ -179,8 +179,14 @@ class CarmenLog:
         """
         idx = np.arange(self.n_scans)[np.asarray(scans)]
         return CarmenLog(
-            self.poses[idx], self.ranges[idx], self.angles, self.max_range,
-            self.skipped_lines, self.skipped_scans, self.message, self.source,
+            self.poses[idx],
+            self.ranges[idx],
+            self.angles,
+            self.max_range,
+            self.skipped_lines,
+            self.skipped_scans,
+            self.message,
+            self.source,
         )
 
     def __repr__(self) -> str:
@@ -250,8 +256,9 @@ def _read_bytes(path: Path) -> bytes:
                 raise MapFormatError(f"{path} is not a valid gzip file ({exc})") from None
             break
         if not inflater.eof:
-            warnings.warn(f"{path}: gzip data ends early; reading what is there",
-                          MapWarning, stacklevel=3)
+            warnings.warn(
+                f"{path}: gzip data ends early; reading what is there", MapWarning, stacklevel=3
+            )
             break
         rest = inflater.unused_data
     return b"".join(parts)
@@ -299,7 +306,7 @@ def _parse_flaser(lines: list[tuple[int, list[bytes]]]) -> _Scans:
             continue
         groups.setdefault(n, []).append((number, tok))
     for n, group in groups.items():
-        arr, ok = _floats([tok[2:n + 5] for _, tok in group])
+        arr, ok = _floats([tok[2 : n + 5] for _, tok in group])
         out.bad += int(np.count_nonzero(~ok))
         if not ok.any():
             continue
@@ -307,7 +314,7 @@ def _parse_flaser(lines: list[tuple[int, list[bytes]]]) -> _Scans:
         out.order.append(np.array([number for number, _ in group])[ok])
         out.key.append((float(n),))
         out.ranges.append(arr[:, :n])
-        out.poses.append(arr[:, n:n + 3])
+        out.poses.append(arr[:, n : n + 3])
         out.max_range.append(np.full(len(arr), np.nan))
         out.angles.append(flaser_angles(n))
     return out
@@ -329,7 +336,7 @@ def _parse_robotlaser(lines: list[tuple[int, list[bytes]]]) -> _Scans:
             continue
         groups.setdefault((n, m), []).append((number, tok))
     for (n, m), group in groups.items():
-        rows = [tok[2:6] + tok[9:9 + n] + tok[10 + n + m:13 + n + m] for _, tok in group]
+        rows = [tok[2:6] + tok[9 : 9 + n] + tok[10 + n + m : 13 + n + m] for _, tok in group]
         arr, ok = _floats(rows)
         arr_ok = arr[ok]
         ok[ok] = arr_ok[:, 3] > 0  # a max range must be positive
@@ -345,8 +352,8 @@ def _parse_robotlaser(lines: list[tuple[int, list[bytes]]]) -> _Scans:
             sel = inverse.ravel() == k
             out.order.append(numbers[sel])
             out.key.append((float(n), float(start), float(res)))
-            out.ranges.append(arr[sel, 4:4 + n])
-            out.poses.append(arr[sel, 4 + n:7 + n])
+            out.ranges.append(arr[sel, 4 : 4 + n])
+            out.poses.append(arr[sel, 4 + n : 7 + n])
             out.max_range.append(arr[sel, 3])
             first = arr[np.flatnonzero(sel)[0]]  # the logged values, not the rounded key
             out.angles.append(first[0] + first[2] * np.arange(n, dtype=np.float64))
@@ -406,8 +413,11 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
         scans, message = _parse_flaser(flaser), "FLASER"
         scans.bad += len(robot)
     if not scans.order:
-        what = "no FLASER or ROBOTLASER1 line" if not (flaser or robot) else (
-            f"no valid laser line ({scans.bad} malformed)")
+        what = (
+            "no FLASER or ROBOTLASER1 line"
+            if not (flaser or robot)
+            else (f"no valid laser line ({scans.bad} malformed)")
+        )
         raise MapFormatError(f"{p} is not a CARMEN laser log: {what}")
 
     # keep the most common beam layout (ties: the one seen first)
@@ -432,14 +442,19 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
     if not max_range > 0:
         raise MapFormatError(f"{p}: every laser reading is zero or negative")
     if scans.bad:
-        warnings.warn(f"{p}: skipped {scans.bad} malformed or truncated {message} line(s)",
-                      MapWarning, stacklevel=2)
+        warnings.warn(
+            f"{p}: skipped {scans.bad} malformed or truncated {message} line(s)",
+            MapWarning,
+            stacklevel=2,
+        )
     if skipped_scans:
         warnings.warn(
             f"{p}: skipped {skipped_scans} {message} scan(s) whose beam layout differs from "
-            f"the {sizes[keep]} kept scans of {n} beams", MapWarning, stacklevel=2)
-    return CarmenLog(poses, ranges, angles, max_range, scans.bad, skipped_scans, message,
-                     str(p))
+            f"the {sizes[keep]} kept scans of {n} beams",
+            MapWarning,
+            stacklevel=2,
+        )
+    return CarmenLog(poses, ranges, angles, max_range, scans.bad, skipped_scans, message, str(p))
 
 
 # -- mapping ------------------------------------------------------------------------------------
@@ -540,23 +555,36 @@ def map_log(
     if (shape is None) != (origin is None):
         raise ParameterError("give both shape and origin, or neither")
     if shape is None or origin is None:
-        shape, origin = log_geometry(log, resolution=resolution, poses=p, margin=margin,
-                                     max_range=max_range)
+        shape, origin = log_geometry(
+            log, resolution=resolution, poses=p, margin=margin, max_range=max_range
+        )
     counts = _counts(log, p, resolution, shape, origin, max_range, clear_no_returns)
     m = counts_to_map(counts)
     return OccupancyMap(m.states, m.resolution, m.origin, log.source)
 
 
 def _counts(
-    log: CarmenLog, poses: NDArray[np.float64], resolution: float, shape: tuple[int, int],
-    origin: tuple[float, float, float], max_range: float | None, clear_no_returns: bool,
+    log: CarmenLog,
+    poses: NDArray[np.float64],
+    resolution: float,
+    shape: tuple[int, int],
+    origin: tuple[float, float, float],
+    max_range: float | None,
+    clear_no_returns: bool,
 ) -> ScanCounts:
     """Hit and miss counts of the log's scans drawn from ``poses``."""
     ranges = log.ranges
     if not clear_no_returns:
         ranges = np.where(ranges >= log.hit_range, 0.0, ranges)  # <= 0: ignored by the mapper
-    return scan_counts(poses, ranges, log.angles, max_range=_mapping_range(log, max_range),
-                       resolution=resolution, shape=shape, origin=origin)
+    return scan_counts(
+        poses,
+        ranges,
+        log.angles,
+        max_range=_mapping_range(log, max_range),
+        resolution=resolution,
+        shape=shape,
+        origin=origin,
+    )
 
 
 # -- are the walls single? ----------------------------------------------------------------------
@@ -641,9 +669,15 @@ def wall_check(
     ]
     first, second = (counts_to_map(c) for c in parts)
     # counts add up beam by beam, so the whole log's map is the map of the summed counts
-    full = counts_to_map(ScanCounts(parts[0].hits + parts[1].hits,
-                                    parts[0].misses + parts[1].misses, parts[0].resolution,
-                                    parts[0].origin, parts[0].dropped_hits + parts[1].dropped_hits))
+    full = counts_to_map(
+        ScanCounts(
+            parts[0].hits + parts[1].hits,
+            parts[0].misses + parts[1].misses,
+            parts[0].resolution,
+            parts[0].origin,
+            parts[0].dropped_hits + parts[1].dropped_hits,
+        )
+    )
     near_first = manhattan_distance_map(first.occupied) <= tolerance
     compared = second.occupied & first.known
     n_compared = int(np.count_nonzero(compared))
@@ -757,41 +791,75 @@ def broken_log_map(
     if not clear_no_returns:
         ranges = np.where(ranges >= log.hit_range, 0.0, ranges)
     fov = float(np.degrees(log.angles[-1] - log.angles[0])) if log.n_beams > 1 else 1.0
-    laser = Laser(beams=log.n_beams, fov_deg=min(max(fov, 1e-6), 360.0), max_range=limit,
-                  range_sigma=0.0)
-    run = LaserRun(true_poses=log.poses, noisy_poses=log.poses, ranges=ranges,
-                   angles=log.angles, laser=laser)
+    laser = Laser(
+        beams=log.n_beams, fov_deg=min(max(fov, 1e-6), 360.0), max_range=limit, range_sigma=0.0
+    )
+    run = LaserRun(
+        true_poses=log.poses, noisy_poses=log.poses, ranges=ranges, angles=log.angles, laser=laser
+    )
     # the box of everything the reference holds: poses and hits within the mapping range
     near = log.ranges[log.hits] < limit
     pts = np.concatenate([log.end_points()[near], log.poses[:, :2]])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     extent = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
     shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(_counts(log, log.poses, resolution, shape, origin, limit,
-                                      clear_no_returns))
-    reference = OccupancyMap(reference.states, reference.resolution, reference.origin,
-                             log.source)
+    reference = counts_to_map(
+        _counts(log, log.poses, resolution, shape, origin, limit, clear_no_returns)
+    )
+    reference = OccupancyMap(reference.states, reference.resolution, reference.origin, log.source)
     index = ReferenceIndex.build(reference)
     outcome, attempts = draw_broken_map(
-        run, reference, index, extent, seed=seed, degree=degree, bumps=bumps,
-        bump_probability=bump_probability, bump_radius=bump_radius, max_rotation=max_rotation,
-        min_rotation=min_rotation, threshold=threshold, merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction, min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts, hint=f"{log.source or 'the log'}: try a lower degree")
+        run,
+        reference,
+        index,
+        extent,
+        seed=seed,
+        degree=degree,
+        bumps=bumps,
+        bump_probability=bump_probability,
+        bump_radius=bump_radius,
+        max_rotation=max_rotation,
+        min_rotation=min_rotation,
+        threshold=threshold,
+        merge_threshold=merge_threshold,
+        min_partition_fraction=min_partition_fraction,
+        min_partition_cells=min_partition_cells,
+        max_attempts=max_attempts,
+        hint=f"{log.source or 'the log'}: try a lower degree",
+    )
     broken, expected, parts, labels, judged, bumped = outcome
     parameters: dict[str, Any] = {
-        "seed": seed, "degree": degree,
+        "seed": seed,
+        "degree": degree,
         "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability, "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation, "min_rotation_deg": min_rotation,
-        "resolution": resolution, "log": log.source, "message": log.message,
-        "scans": log.n_scans, "beams": log.n_beams, "max_range": limit,
-        "clear_no_returns": clear_no_returns, "threshold": threshold,
-        "merge_threshold": merge_threshold, "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells, "attempts": attempts,
+        "bump_probability": bump_probability,
+        "bump_radius": bump_radius,
+        "max_rotation_deg": max_rotation,
+        "min_rotation_deg": min_rotation,
+        "resolution": resolution,
+        "log": log.source,
+        "message": log.message,
+        "scans": log.n_scans,
+        "beams": log.n_beams,
+        "max_range": limit,
+        "clear_no_returns": clear_no_returns,
+        "threshold": threshold,
+        "merge_threshold": merge_threshold,
+        "min_partition_fraction": min_partition_fraction,
+        "min_partition_cells": min_partition_cells,
+        "attempts": attempts,
     }
     broken = OccupancyMap(broken.states, broken.resolution, broken.origin, log.source)
     return SimulatedMap(
-        map=broken, reference=reference, expected_degree=expected, partitions=parts,
-        labels=labels, bumps=judged, seed=seed, parameters=parameters, building=None, run=run,
-        estimated_poses=bumped.poses)
+        map=broken,
+        reference=reference,
+        expected_degree=expected,
+        partitions=parts,
+        labels=labels,
+        bumps=judged,
+        seed=seed,
+        parameters=parameters,
+        building=None,
+        run=run,
+        estimated_poses=bumped.poses,
+    )

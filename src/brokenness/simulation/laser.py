@@ -267,15 +267,17 @@ def simulate_run(
     rng = np.random.default_rng(0) if rng is None else rng
     if not all(math.isfinite(s) and s >= 0 for s in pose_sigma):
         raise ParameterError(f"pose_sigma must be non-negative numbers, got {pose_sigma!r}")
-    poses = route_poses(building.route, spacing=spacing, turn_step_deg=turn_step_deg,
-                        spin_at=building.spin_at)
+    poses = route_poses(
+        building.route, spacing=spacing, turn_step_deg=turn_step_deg, spin_at=building.spin_at
+    )
     angles = laser.angles
     ranges = cast_rays(building.grid, building.truth_resolution, poses, angles, laser.max_range)
     noise = rng.normal(0.0, 1.0, ranges.shape) * laser.range_sigma
     hit = ranges < laser.max_range
-    ranges = np.where(hit, np.clip(ranges + noise, 1e-3, laser.max_range * (1 - 1e-9)),
-                      laser.max_range)
-    pn = rng.normal(0.0, 1.0, poses.shape) * np.array([pose_sigma[0], pose_sigma[0],
-                                                        pose_sigma[1]])
-    return LaserRun(true_poses=poses, noisy_poses=poses + pn, ranges=ranges, angles=angles,
-                    laser=laser)
+    ranges = np.where(
+        hit, np.clip(ranges + noise, 1e-3, laser.max_range * (1 - 1e-9)), laser.max_range
+    )
+    pn = rng.normal(0.0, 1.0, poses.shape) * np.array([pose_sigma[0], pose_sigma[0], pose_sigma[1]])
+    return LaserRun(
+        true_poses=poses, noisy_poses=poses + pn, ranges=ranges, angles=angles, laser=laser
+    )

@@ -75,7 +75,11 @@ class ScanCounts:
 
 
 def _check_inputs(
-    poses: ArrayLike, ranges: ArrayLike, angles: ArrayLike, max_range: float, resolution: float,
+    poses: ArrayLike,
+    ranges: ArrayLike,
+    angles: ArrayLike,
+    max_range: float,
+    resolution: float,
     shape: tuple[int, int],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     p = np.asarray(poses, dtype=float)
@@ -87,7 +91,8 @@ def _check_inputs(
         raise ParameterError(f"angles must have shape (B,), got {a.shape}")
     if r.shape != (p.shape[0], a.shape[0]):
         raise ParameterError(
-            f"ranges must have shape (N, B) = ({p.shape[0]}, {a.shape[0]}), got {r.shape}")
+            f"ranges must have shape (N, B) = ({p.shape[0]}, {a.shape[0]}), got {r.shape}"
+        )
     if not np.isfinite(p).all() or not np.isfinite(a).all():
         raise ParameterError("poses and angles must be finite")
     if not (math.isfinite(max_range) and max_range > 0):
@@ -151,8 +156,11 @@ def grid_geometry(
 
 
 def _to_cells(
-    x: NDArray[np.float64], y: NDArray[np.float64], resolution: float,
-    origin: tuple[float, float, float], shape: tuple[int, int],
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    resolution: float,
+    origin: tuple[float, float, float],
+    shape: tuple[int, int],
 ) -> NDArray[np.int64]:
     """Flat cell index of world points; -1 outside the grid."""
     ox, oy, yaw = origin
@@ -219,9 +227,13 @@ def scan_counts(
         valid = ~(rr <= 0)  # NaN stays valid (no hit, free up to max_range)
         is_hit = valid & np.isfinite(rr) & (rr < max_range)
     hit_cell = np.full(rr.shape, -1, dtype=np.int64)
-    hit_cell[is_hit] = _to_cells(bx[is_hit] + rr[is_hit] * cos[is_hit],
-                                 by[is_hit] + rr[is_hit] * sin[is_hit], resolution, origin,
-                                 (rows, cols))
+    hit_cell[is_hit] = _to_cells(
+        bx[is_hit] + rr[is_hit] * cos[is_hit],
+        by[is_hit] + rr[is_hit] * sin[is_hit],
+        resolution,
+        origin,
+        (rows, cols),
+    )
     inside = hit_cell >= 0
     hits = np.bincount(hit_cell[inside], minlength=n_cells).astype(np.int32)
     dropped = int(np.count_nonzero(is_hit & ~inside))
@@ -306,7 +318,8 @@ def counts_to_map(
     """
     if not (hit_logodds > 0 and miss_logodds < 0 and free_logodds < occupied_logodds):
         raise ParameterError(
-            "need hit_logodds > 0, miss_logodds < 0 and free_logodds < occupied_logodds")
+            "need hit_logodds > 0, miss_logodds < 0 and free_logodds < occupied_logodds"
+        )
     logodds = counts.hits * float(hit_logodds) + counts.misses * float(miss_logodds)
     states = np.full(logodds.shape, UNKNOWN, dtype=np.int8)
     states[logodds <= free_logodds] = FREE
@@ -374,7 +387,20 @@ def map_scans(
     >>> int(m.states[4, 8]), int(m.states[4, 6])
     (1, 0)
     """
-    counts = scan_counts(poses, ranges, angles, max_range=max_range, resolution=resolution,
-                         shape=shape, origin=origin, step=step)
-    return counts_to_map(counts, hit_logodds=hit_logodds, miss_logodds=miss_logodds,
-                         occupied_logodds=occupied_logodds, free_logodds=free_logodds)
+    counts = scan_counts(
+        poses,
+        ranges,
+        angles,
+        max_range=max_range,
+        resolution=resolution,
+        shape=shape,
+        origin=origin,
+        step=step,
+    )
+    return counts_to_map(
+        counts,
+        hit_logodds=hit_logodds,
+        miss_logodds=miss_logodds,
+        occupied_logodds=occupied_logodds,
+        free_logodds=free_logodds,
+    )

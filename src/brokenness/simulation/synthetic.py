@@ -164,17 +164,24 @@ class SimulatedMap:
             "bumps": [b.to_dict() for b in self.bumps],
             "partitions": [p.to_dict() for p in self.partitions],
             "occupied_cells": self.map.n_occupied,
-            "map": {"shape": list(self.map.shape), "resolution": self.map.resolution,
-                    "origin": list(self.map.origin or ())},
-            "reference": {"shape": list(self.reference.shape),
-                          "resolution": self.reference.resolution,
-                          "origin": list(self.reference.origin or ())},
+            "map": {
+                "shape": list(self.map.shape),
+                "resolution": self.map.resolution,
+                "origin": list(self.map.origin or ()),
+            },
+            "reference": {
+                "shape": list(self.reference.shape),
+                "resolution": self.reference.resolution,
+                "origin": list(self.reference.origin or ()),
+            },
         }
 
 
 def _broken_canvas(
-    errors: Sequence[NDArray[np.float64]], extent: tuple[float, float, float, float],
-    poses: NDArray[np.float64], resolution: float,
+    errors: Sequence[NDArray[np.float64]],
+    extent: tuple[float, float, float, float],
+    poses: NDArray[np.float64],
+    resolution: float,
 ) -> tuple[tuple[int, int], tuple[float, float, float]]:
     x0, y0, x1, y1 = extent
     corners = np.array([[x0, y0, 1.0], [x1, y0, 1.0], [x1, y1, 1.0], [x0, y1, 1.0]])
@@ -183,40 +190,58 @@ def _broken_canvas(
 
 
 def _judge(
-    transforms: list[RigidTransform], points: list[NDArray[np.float64]], n_occupied: int,
-    index: ReferenceIndex, *, threshold: float, merge_threshold: float, min_fraction: float,
+    transforms: list[RigidTransform],
+    points: list[NDArray[np.float64]],
+    n_occupied: int,
+    index: ReferenceIndex,
+    *,
+    threshold: float,
+    merge_threshold: float,
+    min_fraction: float,
     min_cells: int,
 ) -> tuple[list[float], list[bool], list[str]]:
     """The honest rule of the module docstring: agreement, counted, reason per partition."""
     n = len(points)
     need = max(min_fraction * n_occupied, float(min_cells))
     q = index.chance_agreement(merge_threshold)
-    agreement = [float(index.occupied_agreement(transforms[j].apply(points[j]), threshold).mean())
-                 if len(points[j]) else 0.0 for j in range(n)]
+    agreement = [
+        float(index.occupied_agreement(transforms[j].apply(points[j]), threshold).mean())
+        if len(points[j])
+        else 0.0
+        for j in range(n)
+    ]
     counted = [False] * n
     reason = [""] * n
     chosen: list[int] = []
     for j in sorted(range(n), key=lambda j: (-len(points[j]), j)):
         p = points[j]
         if len(p) < need:
-            reason[j] = (f"too small: {len(p)} cells = {100 * len(p) / max(n_occupied, 1):.2f} % "
-                         f"of the occupied cells (< {need:.0f})")
+            reason[j] = (
+                f"too small: {len(p)} cells = {100 * len(p) / max(n_occupied, 1):.2f} % "
+                f"of the occupied cells (< {need:.0f})"
+            )
             continue
         if agreement[j] < 0.5:
-            reason[j] = (f"only {100 * agreement[j]:.0f} % of its cells agree with the reference "
-                         "under its own transform")
+            reason[j] = (
+                f"only {100 * agreement[j]:.0f} % of its cells agree with the reference "
+                "under its own transform"
+            )
             continue
         why = ""
         for i in chosen:
             disp = float(transforms[j].displacement(transforms[i], p).mean())
             if disp <= merge_threshold:
-                why = (f"same transform as partition {i}: mean displacement {disp:.2f} cells "
-                       f"(<= {merge_threshold:g})")
+                why = (
+                    f"same transform as partition {i}: mean displacement {disp:.2f} cells "
+                    f"(<= {merge_threshold:g})"
+                )
                 break
             s = float(index.occupied_agreement(transforms[i].apply(p), merge_threshold).mean())
             if q < 1.0 and (s - q) / (1.0 - q) >= 0.5:
-                why = (f"explained by partition {i}'s transform: {100 * s:.0f} % of its cells "
-                       f"agree within {merge_threshold:g} cells under it (chance {100 * q:.0f} %)")
+                why = (
+                    f"explained by partition {i}'s transform: {100 * s:.0f} % of its cells "
+                    f"agree within {merge_threshold:g} cells under it (chance {100 * q:.0f} %)"
+                )
                 break
         if why:
             reason[j] = why
@@ -238,8 +263,14 @@ def broken_map_from_run(
     merge_threshold: float = 4.0,
     min_partition_fraction: float = 0.02,
     min_partition_cells: int = 30,
-) -> tuple[OccupancyMap, int, tuple[SimulatedPartition, ...], NDArray[np.int16],
-           tuple[Bump, ...], BumpedPoses]:
+) -> tuple[
+    OccupancyMap,
+    int,
+    tuple[SimulatedPartition, ...],
+    NDArray[np.int16],
+    tuple[Bump, ...],
+    BumpedPoses,
+]:
     """Map a run with bumps composed onto its pose estimate; judge the partitions.
 
     Parameters
@@ -267,8 +298,15 @@ def broken_map_from_run(
     bp = apply_bumps(run.noisy_poses, bumps)
     shape, origin = _broken_canvas(bp.errors, extent, bp.poses, res)
     max_range = run.laser.max_range
-    counts = scan_counts(bp.poses, run.ranges, run.angles, max_range=max_range, resolution=res,
-                         shape=shape, origin=origin)
+    counts = scan_counts(
+        bp.poses,
+        run.ranges,
+        run.angles,
+        max_range=max_range,
+        resolution=res,
+        shape=shape,
+        origin=origin,
+    )
     broken = counts_to_map(counts)
     n_seg = len(bp.errors)
     # label = the segment with the most hits in the cell (first one on ties); one grid at a time
@@ -276,8 +314,16 @@ def broken_map_from_run(
     owner = np.zeros(shape, dtype=np.int16)
     for j in range(n_seg):
         sel = bp.segment == j
-        hits = scan_counts(bp.poses[sel], run.ranges[sel], run.angles, max_range=max_range,
-                           resolution=res, shape=shape, origin=origin, free_space=False).hits
+        hits = scan_counts(
+            bp.poses[sel],
+            run.ranges[sel],
+            run.angles,
+            max_range=max_range,
+            resolution=res,
+            shape=shape,
+            origin=origin,
+            free_space=False,
+        ).hits
         more = hits > best
         owner[more] = j
         best[more] = hits[more]
@@ -285,21 +331,44 @@ def broken_map_from_run(
     labels = np.where(occupied, owner, NOT_OCCUPIED).astype(np.int16)
     w_map = broken.cell_to_world_matrix()
     w_ref_inv = np.linalg.inv(reference.cell_to_world_matrix())
-    transforms = [RigidTransform.from_matrix(w_ref_inv @ np.linalg.inv(e) @ w_map)
-                  .with_world(broken, reference) for e in bp.errors]
+    transforms = [
+        RigidTransform.from_matrix(w_ref_inv @ np.linalg.inv(e) @ w_map).with_world(
+            broken, reference
+        )
+        for e in bp.errors
+    ]
     points = [cell_points(labels == j) for j in range(n_seg)]
     n_occ = broken.n_occupied
     agreement, counted, reason = _judge(
-        transforms, points, n_occ, index, threshold=threshold, merge_threshold=merge_threshold,
-        min_fraction=min_partition_fraction, min_cells=min_partition_cells)
+        transforms,
+        points,
+        n_occ,
+        index,
+        threshold=threshold,
+        merge_threshold=merge_threshold,
+        min_fraction=min_partition_fraction,
+        min_cells=min_partition_cells,
+    )
     firsts = [0] + [b.scan for b in bp.bumps]
     ends = firsts[1:] + [len(bp.poses)]
     parts = tuple(
-        SimulatedPartition(j, firsts[j], ends[j], transforms[j], len(points[j]),
-                           len(points[j]) / max(n_occ, 1), agreement[j], counted[j], reason[j])
-        for j in range(n_seg))
-    judged = tuple(b.with_verdict(counted[j + 1], "" if counted[j + 1] else reason[j + 1])
-                   for j, b in enumerate(bp.bumps))
+        SimulatedPartition(
+            j,
+            firsts[j],
+            ends[j],
+            transforms[j],
+            len(points[j]),
+            len(points[j]) / max(n_occ, 1),
+            agreement[j],
+            counted[j],
+            reason[j],
+        )
+        for j in range(n_seg)
+    )
+    judged = tuple(
+        b.with_verdict(counted[j + 1], "" if counted[j + 1] else reason[j + 1])
+        for j, b in enumerate(bp.bumps)
+    )
     return broken, sum(counted) - 1, parts, labels, judged, bp
 
 
@@ -342,14 +411,28 @@ def draw_broken_map(
     def attempt(k: int) -> list[Bump]:
         rng = np.random.default_rng([seed, 2, k])
         if degree is not None:
-            return draw_k_bumps(n_scans, int(degree), radius=bump_radius, max_rotation=max_rot,
-                                min_rotation=min_rot, rng=rng)
+            return draw_k_bumps(
+                n_scans,
+                int(degree),
+                radius=bump_radius,
+                max_rotation=max_rot,
+                min_rotation=min_rot,
+                rng=rng,
+            )
         if bump_probability is not None:
-            return draw_bumps(n_scans, float(bump_probability), radius=bump_radius,
-                              max_rotation=max_rot, rng=rng)
+            return draw_bumps(
+                n_scans, float(bump_probability), radius=bump_radius, max_rotation=max_rot, rng=rng
+            )
         if isinstance(bumps, int | np.integer):
-            return draw_k_bumps(n_scans, int(bumps), radius=bump_radius, max_rotation=max_rot,
-                                min_rotation=min_rot, rng=rng, spread=False)
+            return draw_k_bumps(
+                n_scans,
+                int(bumps),
+                radius=bump_radius,
+                max_rotation=max_rot,
+                min_rotation=min_rot,
+                rng=rng,
+                spread=False,
+            )
         return list(bumps or [])
 
     tries = max_attempts if degree is not None else 1
@@ -357,16 +440,24 @@ def draw_broken_map(
     outcome = None
     for k in range(tries):
         outcome = broken_map_from_run(
-            run, reference, attempt(k), extent=extent, index=index, threshold=threshold,
-            merge_threshold=merge_threshold, min_partition_fraction=min_partition_fraction,
-            min_partition_cells=min_partition_cells)
+            run,
+            reference,
+            attempt(k),
+            extent=extent,
+            index=index,
+            threshold=threshold,
+            merge_threshold=merge_threshold,
+            min_partition_fraction=min_partition_fraction,
+            min_partition_cells=min_partition_cells,
+        )
         seen.append(outcome[1])
         if degree is None or outcome[1] == degree:
             break
     if outcome is None or (degree is not None and outcome[1] != degree):
         raise ParameterError(
             f"could not make a map of degree {degree} in {max_attempts} draws (got degrees "
-            f"{sorted(set(seen))}); {hint}")
+            f"{sorted(set(seen))}); {hint}"
+        )
     return outcome, len(seen)
 
 
@@ -462,38 +553,86 @@ def simulate_broken_map(
     width, height = (size, size) if isinstance(size, int | float) else size
     laser = Laser() if laser is None else laser
     seed = int(seed)
-    building = generate_building(seed, width=float(width), height=float(height),
-                                 truth_resolution=resolution / 2)
-    run = simulate_run(building, laser=laser, spacing=spacing, pose_sigma=pose_sigma,
-                       rng=np.random.default_rng([seed, 1]))
+    building = generate_building(
+        seed, width=float(width), height=float(height), truth_resolution=resolution / 2
+    )
+    run = simulate_run(
+        building,
+        laser=laser,
+        spacing=spacing,
+        pose_sigma=pose_sigma,
+        rng=np.random.default_rng([seed, 1]),
+    )
     extent = (0.0, 0.0, building.width, building.height)
     shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(scan_counts(
-        run.true_poses, run.ranges, run.angles, max_range=laser.max_range, resolution=resolution,
-        shape=shape, origin=origin))
+    reference = counts_to_map(
+        scan_counts(
+            run.true_poses,
+            run.ranges,
+            run.angles,
+            max_range=laser.max_range,
+            resolution=resolution,
+            shape=shape,
+            origin=origin,
+        )
+    )
     index = ReferenceIndex.build(reference)
     n_scans = len(run.true_poses)
     outcome, attempts = draw_broken_map(
-        run, reference, index, extent, seed=seed, degree=degree, bumps=bumps,
-        bump_probability=bump_probability, bump_radius=bump_radius, max_rotation=max_rotation,
-        min_rotation=min_rotation, threshold=threshold, merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction, min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts, hint="use a larger building or a lower degree")
+        run,
+        reference,
+        index,
+        extent,
+        seed=seed,
+        degree=degree,
+        bumps=bumps,
+        bump_probability=bump_probability,
+        bump_radius=bump_radius,
+        max_rotation=max_rotation,
+        min_rotation=min_rotation,
+        threshold=threshold,
+        merge_threshold=merge_threshold,
+        min_partition_fraction=min_partition_fraction,
+        min_partition_cells=min_partition_cells,
+        max_attempts=max_attempts,
+        hint="use a larger building or a lower degree",
+    )
     broken, expected, parts, labels, judged, bp = outcome
     parameters: dict[str, Any] = {
-        "seed": seed, "degree": degree,
+        "seed": seed,
+        "degree": degree,
         "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability, "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation, "min_rotation_deg": min_rotation,
-        "size_m": [float(width), float(height)], "resolution": resolution,
-        "laser": {"beams": laser.beams, "fov_deg": laser.fov_deg, "max_range": laser.max_range,
-                  "range_sigma": laser.range_sigma},
-        "spacing": spacing, "pose_sigma": [pose_sigma[0], math.degrees(pose_sigma[1])],
-        "threshold": threshold, "merge_threshold": merge_threshold,
+        "bump_probability": bump_probability,
+        "bump_radius": bump_radius,
+        "max_rotation_deg": max_rotation,
+        "min_rotation_deg": min_rotation,
+        "size_m": [float(width), float(height)],
+        "resolution": resolution,
+        "laser": {
+            "beams": laser.beams,
+            "fov_deg": laser.fov_deg,
+            "max_range": laser.max_range,
+            "range_sigma": laser.range_sigma,
+        },
+        "spacing": spacing,
+        "pose_sigma": [pose_sigma[0], math.degrees(pose_sigma[1])],
+        "threshold": threshold,
+        "merge_threshold": merge_threshold,
         "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells, "attempts": attempts, "scans": n_scans,
+        "min_partition_cells": min_partition_cells,
+        "attempts": attempts,
+        "scans": n_scans,
     }
     return SimulatedMap(
-        map=broken, reference=reference, expected_degree=expected, partitions=parts,
-        labels=labels, bumps=judged, seed=seed, parameters=parameters, building=building,
-        run=run, estimated_poses=bp.poses)
+        map=broken,
+        reference=reference,
+        expected_degree=expected,
+        partitions=parts,
+        labels=labels,
+        bumps=judged,
+        seed=seed,
+        parameters=parameters,
+        building=building,
+        run=run,
+        estimated_poses=bp.poses,
+    )
