@@ -35,8 +35,10 @@ FREE: int = 0
 #: Cell state of a cell that was never observed.
 UNKNOWN: int = -1
 
-#: Largest map accepted, in cells (20000 x 20000). Larger inputs raise :class:`MapSizeError`.
-MAX_CELLS: int = 400_000_000
+#: Largest map accepted, in cells (e.g. 10000 x 10000: 500 m x 500 m at 5 cm). Larger inputs
+#: raise :class:`MapSizeError` before anything is decoded; the brokenness computation needs
+#: about 40 bytes per cell, so this keeps one map within a few GB of memory.
+MAX_CELLS: int = 100_000_000
 
 
 @dataclass(frozen=True, eq=False)
