@@ -371,11 +371,13 @@ def _recurse(
         # registered better than from what is left alone). If none is significant, or the
         # best explains less than half of what is left, it asks once more with a wider search
         # (``thorough``), and keeps the better answer.
+        # The wider search differs from the usual one only in how many peaks it examines,
+        # so it shares the prepared reference.
         pool: list[Candidate] = list(carried)
+        prepared = registrar.prepare_reference(ref_states)
         for attempt in (registrar, thorough):
             if attempt is None:
                 continue
-            prepared = attempt.prepare_reference(ref_states)
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             fresh = attempt.candidates(prepared, moving_states, limit)
             pool += fresh
