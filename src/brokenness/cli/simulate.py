@@ -19,7 +19,8 @@ def add_parser(subparsers: Any) -> None:
             "twice: with the true poses (the reference) and with bump noise on the pose "
             "estimate (the broken map; Birk 2010). Writes NAME.yaml/.pgm, "
             "NAME_reference.yaml/.pgm, NAME.json (seed, bumps, expected degree, each "
-            "partition's true transform and share) and NAME_labels.npy per map."
+            "partition's true transform and share) and NAME_labels.npy per map. With --log, "
+            "the run is a real CARMEN laser log with corrected poses instead of a building."
         ),
     )
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
@@ -81,6 +82,13 @@ def add_parser(subparsers: Any) -> None:
         help="make N maps with seeds SEED..SEED+N-1 (default 1)",
     )
     p.add_argument("--name", default="sim", help="file name prefix (default 'sim')")
+    p.add_argument(
+        "--log",
+        metavar="PATH",
+        default=None,
+        help="a CARMEN log (FLASER/ROBOTLASER1, gzip or plain) with corrected poses: inject "
+        "the bumps into its pose chain instead of simulating a building (--size is ignored)",
+    )
     p.set_defaults(func=run)
 
 
@@ -94,18 +102,27 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--count must be at least 1, got {args.count}")
     if args.seed < 0:
         raise ParameterError(f"--seed must be >= 0, got {args.seed}")
+    bump_options = {
+        "degree": args.degree,
+        "bumps": args.bumps,
+        "bump_probability": args.bump_probability,
+        "bump_radius": args.bump_radius,
+        "max_rotation": args.max_rotation,
+        "min_rotation": args.min_rotation,
+        "resolution": args.resolution,
+    }
+    log = None
+    if args.log is not None:
+        from ..simulation.carmen import read_carmen
+
+        log = read_carmen(args.log)
     for seed in range(args.seed, args.seed + args.count):
-        sim = simulate_broken_map(
-            seed=seed,
-            degree=args.degree,
-            bumps=args.bumps,
-            bump_probability=args.bump_probability,
-            bump_radius=args.bump_radius,
-            max_rotation=args.max_rotation,
-            min_rotation=args.min_rotation,
-            size=args.size,
-            resolution=args.resolution,
-        )
+        if log is not None:
+            from ..simulation.carmen import broken_log_map
+
+            sim = broken_log_map(log, seed=seed, **bump_options)
+        else:
+            sim = simulate_broken_map(seed=seed, size=args.size, **bump_options)
         name = f"{args.name}_{seed:04d}"
         paths = save_simulation(sim, args.out, name)
         counted = sum(p.counted for p in sim.partitions)

@@ -1,0 +1,40 @@
+"""``brokenness simulate`` through the real command line (synthetic and from a CARMEN log)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from brokenness import compute_brokenness, load_map
+from brokenness.cli.main import main
+
+LOG = Path(__file__).parent / "data" / "carmen" / "orebro-corrected.log.gz"
+
+
+def test_simulate_writes_maps_and_truth(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--degree", "1", "--seed", "3"]) == 0
+    assert "expected degree 1" in capsys.readouterr().out
+    truth = json.loads((tmp_path / "sim_0003.json").read_text())
+    assert truth["expected_degree"] == 1
+    m = load_map(tmp_path / "sim_0003.yaml")
+    ref = load_map(tmp_path / "sim_0003_reference.yaml")
+    assert compute_brokenness(m, ref).degree == 1
+
+
+def test_simulate_from_a_carmen_log(tmp_path, capsys):
+    args = ["simulate", "--out", str(tmp_path), "--log", str(LOG), "--degree", "1"]
+    assert main([*args, "--resolution", "0.1"]) == 0
+    truth = json.loads((tmp_path / "sim_0000.json").read_text())
+    assert truth["expected_degree"] == 1
+    m = load_map(tmp_path / "sim_0000.yaml")
+    ref = load_map(tmp_path / "sim_0000_reference.yaml")
+    assert m.resolution == ref.resolution == 0.1
+    assert compute_brokenness(m, ref).degree == 1
+
+
+def test_simulate_bad_log_is_one_line(tmp_path, capsys):
+    not_a_log = tmp_path / "x.log"
+    not_a_log.write_text("hello\nworld\n")
+    assert main(["simulate", "--out", str(tmp_path), "--log", str(not_a_log)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "x.log" in err
