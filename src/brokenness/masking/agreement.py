@@ -41,8 +41,6 @@ class ReferenceIndex:
     reference : OccupancyMap
     occupied_distance : ndarray of float32
         Manhattan distance map to the nearest occupied reference cell.
-    free_distance : ndarray of float32
-        The same for free cells (computed on first use).
     occupied_points : ndarray, shape (N, 2)
         Coordinates of the occupied reference cells.
     """
@@ -120,11 +118,6 @@ class ReferenceIndex:
         out[inside] = self.occupied_points[idx]
         out[np.linalg.norm(out - p, axis=1) > max_distance] = np.inf
         return out
-
-    @cached_property
-    def free_distance(self) -> NDArray[np.float32]:
-        """Manhattan distance map to the nearest free reference cell."""
-        return manhattan_distance_map(self.reference.free)
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:
         """Which (transformed) occupied map cells agree with the reference (Psi_2 <= c)."""

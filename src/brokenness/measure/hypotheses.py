@@ -25,7 +25,7 @@ def best_hypothesis(
     points: NDArray[np.float64],
     index: ReferenceIndex,
     threshold: float,
-) -> tuple[RigidTransform, NDArray[np.bool_], float] | None:
+) -> tuple[RigidTransform, NDArray[np.bool_]] | None:
     """Refine the most promising candidates; keep the one that aligns the most cells best.
 
     Candidates are ranked by the smooth agreement score (:func:`soft_agreement`), which
@@ -51,7 +51,7 @@ def best_hypothesis(
     ]
     raw = [(soft(c.transform.apply(sample)), i, c) for i, c in enumerate(rigid)]
     raw.sort(key=lambda item: (-item[0], item[1]))
-    best: tuple[RigidTransform, float] | None = None
+    best: RigidTransform | None = None
     best_score = -1.0
     # Refine the best hypothesis, and the runner-up only when it scored comparably.
     contenders = [c for value, _, c in raw[:REFINED_CANDIDATES] if value >= 0.5 * raw[0][0]]
@@ -69,7 +69,7 @@ def best_hypothesis(
             value = soft(option.apply(sample))
             if value > best_score:
                 best_score = value
-                best = (option, float(cand.confidence))
+                best = option
     if best is None:
         return None
-    return best[0], hard(best[0].apply(points)), best[1]
+    return best, hard(best.apply(points))

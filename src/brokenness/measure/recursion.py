@@ -387,7 +387,7 @@ def _recurse(
                 break
         if best is None or np.count_nonzero(best[1]) < needed:
             break
-        transform, agree, _confidence = best
+        transform, agree = best
         k = int(np.count_nonzero(agree))
         members = left[with_fringe(transform, points[left], agree, index, merge_threshold)]
         moved = transform.apply(points[members])
