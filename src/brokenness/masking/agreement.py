@@ -74,11 +74,12 @@ class ReferenceIndex:
         return cKDTree(self.occupied_points)
 
     @cached_property
-    def nearest_occupied(self) -> NDArray[np.int32]:
+    def nearest_occupied(self) -> NDArray[np.float32]:
         """Per cell, the row of ``occupied_points`` nearest to it (Euclidean, exact).
 
         One linear-time pass (OpenCV's labelled distance transform), so that nearest-point
-        queries are array lookups instead of tree searches.
+        queries are array lookups instead of tree searches. Stored as float32 (exact for the
+        up to 4 million cells it is built for) so that ``cv2.remap`` can look it up.
         """
         _, labels = cv2.distanceTransformWithLabels(
             np.where(self.reference.occupied, 0, 1).astype(np.uint8),
@@ -87,7 +88,7 @@ class ReferenceIndex:
             labelType=cv2.DIST_LABEL_PIXEL,
         )
         # labels number the zero pixels 1..N in row-major order, as cell_points lists them
-        return (labels - 1).astype(np.int32)
+        return (labels - 1).astype(np.float32)
 
     def nearest_points(self, points: ArrayLike, max_distance: float) -> NDArray[np.float64]:
         """The occupied reference cell nearest to each point (``inf`` rows beyond reach).
@@ -99,24 +100,43 @@ class ReferenceIndex:
         Parameters
         ----------
         points : array_like, shape (N, 2)
-            Query points ``(x, y)``.
+            Query points ``(x, y)``, rounded to the nearest cell for the lookup table.
         max_distance : float
             Points farther than this from every occupied cell get ``inf`` coordinates.
         """
-        p = np.asarray(points, dtype=float).reshape(-1, 2)
-        out = np.full(p.shape, np.inf)
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        n = p.shape[0]
         if self.reference.states.size > _LOOKUP_TABLE_CELLS:
+            out = np.full(p.shape, np.inf)
             dist, idx = self.tree.query(p, k=1, distance_upper_bound=max_distance)
             found = np.isfinite(dist)
             out[found] = self.occupied_points[idx[found]]
             return out
-        h, w = self.reference.shape
-        cols = np.rint(p[:, 0])
-        rows = np.rint(p[:, 1])
-        inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-        idx = self.nearest_occupied[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
-        out[inside] = self.occupied_points[idx]
-        out[np.linalg.norm(out - p, axis=1) > max_distance] = np.inf
+        if n == 0:
+            return np.zeros((0, 2))
+        # nearest-cell lookup in one remap (cells off the grid read -1: no neighbour)
+        grid = np.rint(p).astype(np.float32).reshape(1, n, 2) if n < 32_000 else None
+        if grid is not None:
+            label = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
+                self.nearest_occupied,
+                grid,
+                None,
+                cv2.INTER_NEAREST,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=-1.0,
+            ).reshape(-1)
+        else:
+            h, w = self.reference.shape
+            cols, rows = np.rint(p[:, 0]), np.rint(p[:, 1])
+            inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+            label = np.full(n, -1.0, dtype=np.float32)
+            label[inside] = self.nearest_occupied[
+                rows[inside].astype(np.intp), cols[inside].astype(np.intp)
+            ]
+        idx = label.astype(np.intp)
+        out = self.occupied_points[np.maximum(idx, 0)]
+        d = out - p
+        out[(idx < 0) | (np.einsum("ij,ij->i", d, d) > max_distance * max_distance)] = np.inf
         return out
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:

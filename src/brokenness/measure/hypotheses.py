@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -25,13 +26,20 @@ def best_hypothesis(
     points: NDArray[np.float64],
     index: ReferenceIndex,
     threshold: float,
+    refined: dict[tuple[float, float, float], list[tuple[RigidTransform, float]]] | None = None,
 ) -> tuple[RigidTransform, NDArray[np.bool_]] | None:
     """Refine the most promising candidates; keep the one that aligns the most cells best.
 
     Candidates are ranked by the smooth agreement score (:func:`soft_agreement`), which
     rewards exact alignment over loose agreement: a transform that gains a few cells of
     another partition by tilting the main one a little must not win.
+
+    ``refined``, if given, remembers the refinements of each candidate transform; pass the
+    same dictionary to calls on the same ``points`` (and only those) to skip repeated work.
     """
+    memo: dict[tuple[float, float, float], list[tuple[RigidTransform, float]]] = (
+        {} if refined is None else refined
+    )
 
     def soft(moved: NDArray[np.float64]) -> float:
         return soft_agreement(index.occupied_distance, moved, threshold)
@@ -56,20 +64,35 @@ def best_hypothesis(
     # Refine the best hypothesis, and the runner-up only when it scored comparably.
     contenders = [c for value, _, c in raw[:REFINED_CANDIDATES] if value >= 0.5 * raw[0][0]]
     for cand in contenders:
-        moved = cand.transform.apply(sample)
-        agree = hard(moved)
-        if not agree.any():
-            continue
-        swept = sweep_rotation(cand.transform, sample, soft, moved[agree].mean(axis=0))
-        fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
-        polished = polish_transform(
-            fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
-        )
-        for option in (polished, fitted, swept, cand.transform):
-            value = soft(option.apply(sample))
+        t = cand.transform
+        key = (t.rotation, t.tx, t.ty)
+        if key not in memo:
+            memo[key] = _refinements(t, sample, index, threshold, soft, hard)
+        for option, value in memo[key]:
             if value > best_score:
                 best_score = value
                 best = option
     if best is None:
         return None
     return best, hard(best.apply(points))
+
+
+def _refinements(
+    transform: RigidTransform,
+    sample: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    soft: Callable[[NDArray[np.float64]], float],
+    hard: Callable[[NDArray[np.float64]], NDArray[np.bool_]],
+) -> list[tuple[RigidTransform, float]]:
+    """The stages of the refinement of one candidate, each with its score (best stage last)."""
+    moved = transform.apply(sample)
+    agree = hard(moved)
+    if not agree.any():
+        return []
+    swept = sweep_rotation(transform, sample, soft, moved[agree].mean(axis=0))
+    fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
+    polished = polish_transform(
+        fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
+    )
+    return [(option, soft(option.apply(sample))) for option in (polished, fitted, swept, transform)]

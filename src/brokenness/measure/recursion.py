@@ -374,6 +374,7 @@ def _recurse(
         # The wider search differs from the usual one only in how many peaks it examines,
         # so it shares the prepared reference.
         pool: list[Candidate] = list(carried)
+        refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
         prepared = registrar.prepare_reference(ref_states)
         for attempt in (registrar, thorough):
             if attempt is None:
@@ -381,7 +382,7 @@ def _recurse(
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             fresh = attempt.candidates(prepared, moving_states, limit)
             pool += fresh
-            best = best_hypothesis(pool, points[left], index, threshold)
+            best = best_hypothesis(pool, points[left], index, threshold, refined)
             carried = fresh
             if best is not None and np.count_nonzero(best[1]) >= max(needed, _THOROUGH_BELOW * n):
                 break

@@ -25,6 +25,7 @@ __all__ = [
     "fit_rigid",
     "polish_transform",
     "refine_transform",
+    "sample_nearby",
     "soft_agreement",
     "sweep_rotation",
 ]
@@ -55,12 +56,13 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
     RigidTransform
         ``t`` minimising ``sum |t(source) - target|^2``.
     """
-    cs = source.mean(axis=0)
-    ct = target.mean(axis=0)
-    s = source - cs
-    t = target - ct
-    cross = float(np.sum(s[:, 0] * t[:, 1] - s[:, 1] * t[:, 0]))
-    dot = float(np.sum(s[:, 0] * t[:, 0] + s[:, 1] * t[:, 1]))
+    n = source.shape[0]
+    cs = source.sum(axis=0) / n
+    ct = target.sum(axis=0) / n
+    sx, sy = source[:, 0] - cs[0], source[:, 1] - cs[1]
+    tx, ty = target[:, 0] - ct[0], target[:, 1] - ct[1]
+    cross = float(sx @ ty - sy @ tx)
+    dot = float(sx @ tx + sy @ ty)
     angle = math.atan2(cross, dot)
     c, si = math.cos(angle), math.sin(angle)
     return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
@@ -164,21 +166,37 @@ def soft_agreement(
     ``d`` is the reference's Manhattan distance map sampled bilinearly at the moved points
     (far away outside the grid), so that sub-cell moves change the score.
     """
-    # cv2.remap wants a 2D map with sides < 32767: lay the points out in rows of 1024.
-    n = moved.shape[0]
-    width = 1024
-    padded = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
-    padded[:n] = moved
-    grid = padded.reshape(-1, width, 2)
-    d = cv2.remap(
-        distance_map,
-        np.ascontiguousarray(grid[..., 0]),
-        np.ascontiguousarray(grid[..., 1]),
+    d = sample_nearby(distance_map, moved, threshold + 1.0)
+    return float(np.maximum(threshold + 1.0 - d, 0.0).sum(dtype=np.float64))
+
+
+def sample_nearby(
+    field: NDArray[np.float32], points: NDArray[np.float64], outside: float
+) -> NDArray[np.float32]:
+    """Bilinear samples of ``field`` at ``points`` (N, 2) = (x, y); ``outside`` off the grid.
+
+    One ``cv2.remap`` over the points laid out as a two-channel map: a single row when it
+    fits (OpenCV wants sides under 32767), rows of 1024 points otherwise.
+    """
+    n = points.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.float32)
+    if n < 32_000:
+        grid = np.asarray(points, dtype=np.float32).reshape(1, n, 2)
+    else:
+        width = 1024
+        grid = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
+        grid[:n] = points
+        grid = grid.reshape(-1, width, 2)
+    out = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
+        field,
+        grid,
+        None,
         cv2.INTER_LINEAR,
         borderMode=cv2.BORDER_CONSTANT,
-        borderValue=float(threshold + 1.0),
+        borderValue=float(outside),
     )
-    return float(np.maximum(threshold + 1.0 - d, 0.0).sum(dtype=np.float64))
+    return np.asarray(out, dtype=np.float32).reshape(-1)[:n]
 
 
 def polish_transform(

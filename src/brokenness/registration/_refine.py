@@ -106,63 +106,71 @@ def refine_rigid(
     cx = points[:, 0] - centre[0]
     cy = points[:, 1] - centre[1]
     theta = math.atan2(matrix[1, 0], matrix[0, 0])
-    m = matrix[:2, :2] @ centre + matrix[:2, 2]
-    params = np.array([theta, m[0], m[1]], dtype=np.float64)
+    mx = float(matrix[0, 0] * centre[0] + matrix[0, 1] * centre[1] + matrix[0, 2])
+    my = float(matrix[1, 0] * centre[0] + matrix[1, 1] * centre[1] + matrix[1, 2])
     iterations = max(1, iterations)
     shrink = max(1, iterations // 2)
-    radii = np.concatenate(
-        [np.geomspace(start_radius, end_radius, shrink), np.full(iterations - shrink, end_radius)]
-    )
+    # inlier radius: geometric from start to end over the first half, then constant
+    ratio = end_radius / start_radius
+    radii = [
+        start_radius * ratio ** (k / max(shrink - 1, 1)) if k < shrink else end_radius
+        for k in range(iterations)
+    ]
     far = float(start_radius) + 1e3
     n = points.shape[0]
     rows = -(-n // _BLOCK)
     maps = np.zeros((2, 5, rows * _BLOCK), dtype=np.float32)
+    map_x = maps[0].reshape(-1, _BLOCK)
+    map_y = maps[1].reshape(-1, _BLOCK)
+    # Small-matrix algebra below is done on Python floats: at a few hundred points per call
+    # numpy's per-call overhead would dominate (this runs hundreds of times per map).
     for k, radius in enumerate(radii):
-        c, s = math.cos(params[0]), math.sin(params[0])
+        c, s = math.cos(theta), math.sin(theta)
         rx = c * cx - s * cy  # rotated, centred points
         ry = s * cx + c * cy
-        qx = rx + params[1]
-        qy = ry + params[2]
         # the point and its four neighbours (central differences) in one remap
-        maps[0, :, :n] = qx
-        maps[1, :, :n] = qy
+        maps[0, :, :n] = rx + mx
+        maps[1, :, :n] = ry + my
         maps[0, 1, :n] += 1.0
         maps[0, 2, :n] -= 1.0
         maps[1, 3, :n] += 1.0
         maps[1, 4, :n] -= 1.0
         vals = cv2.remap(
             field,
-            maps[0].reshape(-1, _BLOCK),
-            maps[1].reshape(-1, _BLOCK),
+            map_x,
+            map_y,
             cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=far,
         ).reshape(5, -1)[:, :n]
-        keep = vals[0] < radius
-        if np.count_nonzero(keep) < 3:
+        keep = np.flatnonzero(vals[0] < radius)
+        if keep.size < 3:
             break
         v = vals[:, keep].astype(np.float64)
         r = v[0]
         gx = 0.5 * (v[1] - v[2])
         gy = 0.5 * (v[3] - v[4])
         # d q / d theta is the rotated, centred point turned by 90 degrees
-        jac = np.stack([gy * rx[keep] - gx * ry[keep], gx, gy])
-        a = jac @ jac.T
-        b = jac @ r
-        if not np.any(b):
+        gt = gy * rx[keep] - gx * ry[keep]
+        a00, a01, a02 = float(gt @ gt), float(gt @ gx), float(gt @ gy)
+        a11, a12, a22 = float(gx @ gx), float(gx @ gy), float(gy @ gy)
+        b0, b1, b2 = float(gt @ r), float(gx @ r), float(gy @ r)
+        if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
             break
-        a += np.diag(np.maximum(np.diag(a), 1e-9) * 1e-6)
-        try:
-            step = np.linalg.solve(a, -b)
-        except np.linalg.LinAlgError:
+        # Levenberg-style damping of the diagonal, then Cramer's rule for the 3x3 system
+        a00 += max(a00, 1e-9) * 1e-6
+        a11 += max(a11, 1e-9) * 1e-6
+        a22 += max(a22, 1e-9) * 1e-6
+        step = _solve3(a00, a01, a02, a11, a12, a22, -b0, -b1, -b2)
+        if step is None:
             break
-        if not np.all(np.isfinite(step)):
-            break
-        params = params + step
+        d_theta, d_x, d_y = step
+        theta += d_theta
+        mx += d_x
+        my += d_y
         # converged: the last step moved every point by about 0.01 cell or less
-        if k >= shrink and abs(step[0]) < 1e-5 and abs(step[1]) < 1e-2 and abs(step[2]) < 1e-2:
+        if k >= shrink and abs(d_theta) < 1e-5 and abs(d_x) < 1e-2 and abs(d_y) < 1e-2:
             break
-    theta, mx, my = params
     c, s = math.cos(theta), math.sin(theta)
     rot = np.array([[c, -s], [s, c]])
     t = np.array([mx, my]) - rot @ centre
@@ -170,3 +178,32 @@ def refine_rigid(
     out[:2, :2] = rot
     out[:2, 2] = t
     return out
+
+
+def _solve3(
+    a00: float,
+    a01: float,
+    a02: float,
+    a11: float,
+    a12: float,
+    a22: float,
+    b0: float,
+    b1: float,
+    b2: float,
+) -> tuple[float, float, float] | None:
+    """Solve the symmetric 3x3 system ``A x = b`` by Cramer's rule (None if singular)."""
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    if not math.isfinite(det) or abs(det) < 1e-300:
+        return None
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    x0 = (c00 * b0 + c01 * b1 + c02 * b2) / det
+    x1 = (c01 * b0 + c11 * b1 + c12 * b2) / det
+    x2 = (c02 * b0 + c12 * b1 + c22 * b2) / det
+    if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2)):
+        return None
+    return x0, x1, x2

@@ -92,6 +92,26 @@ class _Prepared:
     levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
     signatures: dict[int, NDArray[np.complex64]] = field(default_factory=dict)
     spectra: dict[tuple[int, int, int], NDArray[np.complex64]] = field(default_factory=dict)
+    memo: _Memo | None = None  # the last moving map (see _Memo)
+
+
+@dataclass
+class _Memo:
+    """The last moving map registered against a prepared reference, and what was found.
+
+    The recursion may ask twice about the same remainder (a usual and a wider search, which
+    differ only in how many rotation peaks they examine): the second call reuses the
+    analysis of the moving map, the hypotheses of every angle already tried and their
+    refinements. ``states`` is a copy, compared by content, so a changed map is never
+    mistaken for the remembered one.
+    """
+
+    key: tuple[Any, ...]  # options that shape the hypotheses
+    states: NDArray[np.int8]
+    moving: _Moving
+    angle_correlation: NDArray[np.float64]
+    hypotheses: dict[float, list[tuple[NDArray[np.float64], float]]] = field(default_factory=dict)
+    refined: dict[bytes, tuple[NDArray[np.float64], int]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -356,12 +376,16 @@ class IFMIRegistrar:
             ref.spectra[key] = spec
         return spec
 
-    def _rotations(self, ref: _Prepared, mov: _Moving) -> list[float]:
-        """Rotation hypotheses (radians, modulo pi), best angle-correlation peak first."""
+    def _angle_correlation(self, ref: _Prepared, mov: _Moving) -> NDArray[np.float64]:
+        """Phase correlation of the two log-polar signatures along the angle axis."""
         signature = self._reference_signature(ref, mov.rotation_factor)
         cross = signature * np.conj(self._signature(mov.for_rotation))
         cross = cross.sum(axis=0)
         corr = scipy.fft.irfft(_spectral.whiten(cross), n=self.n_angles)
+        return np.asarray(corr, dtype=np.float64)
+
+    def _rotations(self, corr: NDArray[np.float64]) -> list[float]:
+        """Rotation hypotheses (radians, modulo pi), best angle-correlation peak first."""
         n = self.n_angles
         sep = max(2, n // 36)  # peaks at least 5 degrees apart
         out = []
@@ -375,6 +399,38 @@ class IFMIRegistrar:
             )
             out.append((i + off) * math.pi / n)
         return out
+
+    def _memo_key(self) -> tuple[Any, ...]:
+        """The options a remembered analysis depends on (all but the peak selection)."""
+        return (
+            self.n_angles,
+            self.n_radii,
+            self.band,
+            self.max_size,
+            self.rotation_size,
+            self.translation_peaks,
+            self.refine,
+            self.refine_iterations,
+            self.max_points,
+            self.agree_cells,
+        )
+
+    def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8]) -> _Memo:
+        """The analysis of ``moving_states`` against ``ref``, remembered for a second call."""
+        states = np.asarray(moving_states)
+        key = self._memo_key()
+        memo = ref.memo
+        if (
+            memo is not None
+            and memo.key == key
+            and memo.states.shape == states.shape
+            and np.array_equal(memo.states, states)
+        ):
+            return memo
+        mov = self._moving(states, ref)
+        memo = _Memo(key, states.copy(), mov, self._angle_correlation(ref, mov))
+        ref.memo = memo
+        return memo
 
     def candidates(
         self, prepared_reference: _Prepared, moving_states: NDArray[np.int8], max_candidates: int
@@ -393,9 +449,10 @@ class IFMIRegistrar:
                 f"max_candidates must be a positive integer, got {max_candidates!r}"
             )
         ref = prepared_reference
-        mov = self._moving(moving_states, ref)
+        memo = self._memo(ref, moving_states)
+        mov = memo.moving
         f = mov.factor
-        hyps = self._spectral_hypotheses(ref, mov)
+        hyps = self._spectral_hypotheses(ref, memo)
         # coarse (cropped, pooled) frames -> full cells: X_full = f * X + (f - 1)/2 + offset
         half = 0.5 * (f - 1)
         to_ref = _shift(ref.offset[0] + half, ref.offset[1] + half) @ _scale(f)
@@ -411,32 +468,21 @@ class IFMIRegistrar:
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
+        placed: list[NDArray[np.float64]] = []  # the moving points under each kept hypothesis
         best_n0 = prescreen[order[0]][0]
         for k in order:
             n0, z, full = prescreen[k]
             score = 0
             if ref.distance is not None:
-                score = _refine.inlier_count(ref.distance, mov.points, full, self.agree_cells)
                 # refine the hypotheses that are at least half as good near the walls as the
                 # best one; the refinement only gains cells already near a wall, so the rest
                 # are very unlikely to win and keep their spectral estimate (saves time)
-                if 2 * n0 >= best_n0:
-                    refined = _refine.refine_rigid(
-                        ref.distance,
-                        mov.points,
-                        full,
-                        start_radius=start,
-                        end_radius=self.agree_cells,
-                        iterations=self.refine_iterations,
-                    )
-                    after = _refine.inlier_count(
-                        ref.distance, mov.points, refined, self.agree_cells
-                    )
-                    if after >= score:
-                        full, score = refined, after
-            if any(self._same(full, other[3], mov.points) for other in scored):
+                full, score = self._refined(ref.distance, memo, full, start, 2 * n0 >= best_n0)
+            moved = mov.points @ full[:2, :2].T + full[:2, 2]
+            if any(self._same(moved, other) for other in placed):
                 continue
             scored.append((score, z, k, full))
+            placed.append(moved)
             if len(scored) == max_candidates:
                 break
         # best first: agreeing cells, then peak quality, then spectral order (deterministic)
@@ -445,6 +491,37 @@ class IFMIRegistrar:
             Candidate(RigidTransform.from_matrix(full), self._confidence(z))
             for _, z, _, full in scored
         ]
+
+    def _refined(
+        self,
+        distance: NDArray[np.float32],
+        memo: _Memo,
+        full: NDArray[np.float64],
+        start: float,
+        refine: bool,
+    ) -> tuple[NDArray[np.float64], int]:
+        """A hypothesis and its agreeing outline cells, refined if ``refine`` (remembered)."""
+        key = full.tobytes() + bytes([refine])
+        hit = memo.refined.get(key)
+        if hit is not None:
+            return hit
+        points = memo.moving.points
+        score = _refine.inlier_count(distance, points, full, self.agree_cells)
+        out = full
+        if refine:
+            refined = _refine.refine_rigid(
+                distance,
+                points,
+                full,
+                start_radius=start,
+                end_radius=self.agree_cells,
+                iterations=self.refine_iterations,
+            )
+            after = _refine.inlier_count(distance, points, refined, self.agree_cells)
+            if after >= score:
+                out, score = refined, after
+        memo.refined[key] = (out, score)
+        return out, score
 
     # -- internals ----------------------------------------------------------------------------
     @staticmethod
@@ -456,11 +533,10 @@ class IFMIRegistrar:
         return out
 
     @staticmethod
-    def _same(a: NDArray[np.float64], b: NDArray[np.float64], points: NDArray[np.float64]) -> bool:
-        """Two transforms put the moving cells within a cell of each other on average."""
-        pa = points @ a[:2, :2].T + a[:2, 2]
-        pb = points @ b[:2, :2].T + b[:2, 2]
-        return bool(np.mean(np.linalg.norm(pa - pb, axis=1)) < 1.0)
+    def _same(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
+        """Two placements of the moving points lie within a cell of each other on average."""
+        d = a - b
+        return bool(np.mean(np.sqrt(np.einsum("ij,ij->i", d, d))) < 1.0)
 
     @staticmethod
     def _confidence(excess: float) -> float:
@@ -476,9 +552,22 @@ class IFMIRegistrar:
         return float(1.0 - math.exp(-max(0.0, excess) / 15.0))
 
     def _spectral_hypotheses(
-        self, ref: _Prepared, mov: _Moving
+        self, ref: _Prepared, memo: _Memo
     ) -> list[tuple[NDArray[np.float64], float]]:
-        """(coarse-frame matrix moving -> reference, peak quality) for every hypothesis."""
+        """(coarse-frame matrix moving -> reference, peak quality) for every hypothesis.
+
+        The hypotheses of an angle already tried on the same moving map are remembered.
+        """
+        thetas = self._rotations(memo.angle_correlation)
+        missing = [theta for theta in thetas if theta not in memo.hypotheses]
+        if missing:
+            memo.hypotheses.update(self._translations(ref, memo.moving, missing))
+        return [h for theta in thetas for h in memo.hypotheses[theta]]
+
+    def _translations(
+        self, ref: _Prepared, mov: _Moving, thetas: list[float]
+    ) -> dict[float, list[tuple[NDArray[np.float64], float]]]:
+        """Per rotation ``theta`` (and its 180-degree twin), the translation hypotheses."""
         g = mov.coarse
         h, w = g.shape
         side = math.ceil(math.hypot(h, w)) + 2  # canvas holding the moving image at any angle
@@ -491,8 +580,9 @@ class IFMIRegistrar:
         spec_ref = self._reference_spectrum(ref, mov.factor, padded)
         centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
         centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
-        out: list[tuple[NDArray[np.float64], float]] = []
-        for theta in self._rotations(ref, mov):
+        found: dict[float, list[tuple[NDArray[np.float64], float]]] = {}
+        for theta in thetas:
+            out: list[tuple[NDArray[np.float64], float]] = found.setdefault(theta, [])
             rot = _rot(theta)
             # moving -> canvas: rotate about the moving image centre into the canvas centre;
             # the shift is rounded so that theta = 0 is an exact (interpolation-free) copy
@@ -524,7 +614,7 @@ class IFMIRegistrar:
                             dx -= padded[1]
                         matrix = _shift(dx, dy) @ to_canvas
                     out.append((matrix, z))
-        return out
+        return found
 
     @classmethod
     def _peaks(cls, surface: NDArray[np.floating], count: int) -> list[tuple[float, float, float]]:
@@ -534,26 +624,36 @@ class IFMIRegistrar:
         similar height; the true one is not always the highest, so more than one translation
         per rotation can be handed on to be scored on the cells.
         """
+        # statistics of the surface from a fixed subsample (speed), shared by its peaks
+        sub = surface[::4, ::4]
+        level = (float(sub.mean()), float(sub.std()))
         if count == 1:
-            return [cls._peak(surface)]
+            return [cls._peak(surface, level)]
         work = np.array(surface, dtype=np.float32, copy=True)
         low = float(work.min())
         rows, cols = work.shape
         out = []
         for _ in range(count):
-            r, c, z = cls._peak(work)
+            r, c, z = cls._peak(work, level)
             out.append((r, c, z))
             ri, ci = int(round(r)) % rows, int(round(c)) % cols
-            rr = np.arange(ri - 3, ri + 4) % rows
-            cc = np.arange(ci - 3, ci + 4) % cols
-            work[np.ix_(rr, cc)] = low
+            r0, c0 = ri - 3, ci - 3
+            if 0 <= r0 and r0 + 7 <= rows and 0 <= c0 and c0 + 7 <= cols:
+                work[r0 : r0 + 7, c0 : c0 + 7] = low
+            else:  # the window wraps around an edge
+                rr = np.arange(r0, r0 + 7) % rows
+                cc = np.arange(c0, c0 + 7) % cols
+                work[np.ix_(rr, cc)] = low
         return out
 
     @staticmethod
-    def _peak(surface: NDArray[np.floating]) -> tuple[float, float, float]:
+    def _peak(
+        surface: NDArray[np.floating], level: tuple[float, float]
+    ) -> tuple[float, float, float]:
         """Sub-cell ``(row, col)`` of the highest peak (index in [0, n)) and its quality.
 
-        The quality is the peak's z-score minus the noise level (see :meth:`_confidence`).
+        ``level`` is the mean and standard deviation of the surface; the quality is the
+        peak's z-score minus the noise level (see :meth:`_confidence`).
         """
         rows, cols = surface.shape
         i = int(np.argmax(surface))
@@ -565,8 +665,7 @@ class IFMIRegistrar:
         ox = _spectral.parabolic_offset(
             float(surface[r, (c - 1) % cols]), v, float(surface[r, (c + 1) % cols])
         )
-        sub = surface[::4, ::4]  # statistics of the surface from a fixed subsample (speed)
-        std = float(sub.std())
-        z = (v - float(sub.mean())) / std if std > 0 else 0.0
+        mean, std = level
+        z = (v - mean) / std if std > 0 else 0.0
         noise = 2.5 * math.sqrt(2.0 * math.log(surface.size))
         return r + oy, c + ox, z - noise
