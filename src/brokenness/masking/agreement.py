@@ -114,29 +114,25 @@ class ReferenceIndex:
             return out
         if n == 0:
             return np.zeros((0, 2))
-        # nearest-cell lookup in one remap (cells off the grid read -1: no neighbour)
-        grid = np.rint(p).astype(np.float32).reshape(1, n, 2) if n < 32_000 else None
-        if grid is not None:
-            label = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
+        # nearest-cell lookup in one remap (INTER_NEAREST rounds half to even, like np.rint;
+        # cells off the grid read -1: no neighbour)
+        label = np.empty(n, dtype=np.float32)
+        query = p.astype(np.float32)
+        for start in range(0, n, 32_000):  # OpenCV wants map sides under 32767
+            stop = min(start + 32_000, n)
+            label[start:stop] = cv2.remap(  # type: ignore[call-overload]  # map2=None
                 self.nearest_occupied,
-                grid,
+                query[start:stop].reshape(1, -1, 2),
                 None,
                 cv2.INTER_NEAREST,
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=-1.0,
             ).reshape(-1)
-        else:
-            h, w = self.reference.shape
-            cols, rows = np.rint(p[:, 0]), np.rint(p[:, 1])
-            inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-            label = np.full(n, -1.0, dtype=np.float32)
-            label[inside] = self.nearest_occupied[
-                rows[inside].astype(np.intp), cols[inside].astype(np.intp)
-            ]
         idx = label.astype(np.intp)
-        out = self.occupied_points[np.maximum(idx, 0)]
+        out = self.occupied_points.take(np.maximum(idx, 0), axis=0)
         d = out - p
-        out[(idx < 0) | (np.einsum("ij,ij->i", d, d) > max_distance * max_distance)] = np.inf
+        far = np.einsum("ij,ij->i", d, d) > max_distance * max_distance
+        out[far | (idx < 0)] = np.inf
         return out
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:

@@ -90,7 +90,8 @@ def _refinements(
     agree = hard(moved)
     if not agree.any():
         return []
-    swept = sweep_rotation(transform, sample, soft, moved[agree].mean(axis=0))
+    pivot = moved[agree].mean(axis=0)
+    swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
     polished = polish_transform(
         fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold

@@ -27,6 +27,7 @@ __all__ = [
     "refine_transform",
     "sample_nearby",
     "soft_agreement",
+    "soft_agreements",
     "sweep_rotation",
 ]
 
@@ -56,14 +57,14 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
     RigidTransform
         ``t`` minimising ``sum |t(source) - target|^2``.
     """
-    n = source.shape[0]
-    cs = source.sum(axis=0) / n
-    ct = target.sum(axis=0) / n
-    sx, sy = source[:, 0] - cs[0], source[:, 1] - cs[1]
-    tx, ty = target[:, 0] - ct[0], target[:, 1] - ct[1]
-    cross = float(sx @ ty - sy @ tx)
-    dot = float(sx @ tx + sy @ ty)
-    angle = math.atan2(cross, dot)
+    # sums and cross-products as BLAS products: numpy's axis-0 reductions of (N, 2) arrays
+    # are several times slower, and ICP calls this on every iteration
+    ones = np.ones(source.shape[0])
+    n = float(source.shape[0])
+    cs = (ones @ source) / n
+    ct = (ones @ target) / n
+    h = source.T @ target - n * np.outer(cs, ct)  # 2x2 cross-covariance (times N)
+    angle = math.atan2(float(h[0, 1] - h[1, 0]), float(h[0, 0] + h[1, 1]))
     c, si = math.cos(angle), math.sin(angle)
     return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
 
@@ -107,10 +108,10 @@ def refine_transform(
     for _ in range(iterations):
         moved = current.apply(points)
         matched = nearest(moved, gate)
-        inliers = np.isfinite(matched[:, 0])
-        if np.count_nonzero(inliers) < 3:
+        inliers = np.flatnonzero(np.isfinite(matched[:, 0]))
+        if inliers.size < 3:
             break
-        step = fit_rigid(moved[inliers], matched[inliers])
+        step = fit_rigid(moved.take(inliers, axis=0), matched.take(inliers, axis=0))
         current = step.compose(current)
         if abs(step.rotation) < 1e-4 and math.hypot(step.tx, step.ty) < 1e-2:
             break
@@ -120,7 +121,8 @@ def refine_transform(
 def sweep_rotation(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    score: Callable[[NDArray[np.float64]], float],
+    distance_map: NDArray[np.float32],
+    threshold: float,
     pivot: NDArray[np.float64],
     *,
     half_range_deg: float = 3.0,
@@ -131,7 +133,8 @@ def sweep_rotation(
     The spectral rotation estimate of a small or elongated part (a corridor, say) can be off
     by a degree or two, and far from the centre that is more than the masking threshold and
     more than a local search recovers. Trying a fan of small rotations about the cells that
-    already agree, and keeping the best-scoring one, puts the polish into the right basin.
+    already agree, and keeping the one with the best :func:`soft_agreement`, puts the polish
+    into the right basin. The whole fan is scored in one lookup.
 
     Parameters
     ----------
@@ -139,23 +142,20 @@ def sweep_rotation(
         Starting estimate.
     points : ndarray, shape (N, 2)
         Map cells.
-    score : callable
-        ``score(moved_points) -> float``, higher is better.
+    distance_map : ndarray of float32
+        The reference's Manhattan distance map.
+    threshold : float
+        Threshold of :func:`soft_agreement`.
     pivot : ndarray, shape (2,)
         Centre of the rotations, in reference cells.
     half_range_deg, step_deg : float
         The fan of rotations tried, in degrees.
     """
-    best, best_score = transform, score(transform.apply(points))
     n = int(round(half_range_deg / step_deg))
-    for delta in np.radians(step_deg * np.arange(-n, n + 1)):
-        if delta == 0.0:
-            continue
-        candidate = _turn_about(pivot, float(delta)).compose(transform)
-        value = score(candidate.apply(points))
-        if value > best_score:
-            best, best_score = candidate, value
-    return best
+    deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
+    fan = [transform] + [_turn_about(pivot, d).compose(transform) for d in deltas]
+    scores = soft_agreements(distance_map, fan, points, threshold)
+    return fan[int(np.argmax(scores))]  # the first of equal scores: no turn wins ties
 
 
 def soft_agreement(
@@ -170,23 +170,41 @@ def soft_agreement(
     return float(np.maximum(threshold + 1.0 - d, 0.0).sum(dtype=np.float64))
 
 
-def sample_nearby(
-    field: NDArray[np.float32], points: NDArray[np.float64], outside: float
-) -> NDArray[np.float32]:
-    """Bilinear samples of ``field`` at ``points`` (N, 2) = (x, y); ``outside`` off the grid.
-
-    One ``cv2.remap`` over the points laid out as a two-channel map: a single row when it
-    fits (OpenCV wants sides under 32767), rows of 1024 points otherwise.
-    """
+def soft_agreements(
+    distance_map: NDArray[np.float32],
+    transforms: list[RigidTransform],
+    points: NDArray[np.float64],
+    threshold: float,
+) -> NDArray[np.float64]:
+    """:func:`soft_agreement` of ``points`` under each of ``transforms``, in one lookup."""
     n = points.shape[0]
-    if n == 0:
-        return np.zeros(0, dtype=np.float32)
-    if n < 32_000:
-        grid = np.asarray(points, dtype=np.float32).reshape(1, n, 2)
-    else:
-        width = 1024
+    moved = np.empty((len(transforms), n, 2), dtype=np.float32)
+    for i, t in enumerate(transforms):
+        moved[i] = t.apply(points)
+    d = sample_nearby(distance_map, moved, threshold + 1.0).reshape(len(transforms), n)
+    return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
+
+
+def sample_nearby(
+    field: NDArray[np.float32], points: NDArray[np.floating], outside: float
+) -> NDArray[np.float32]:
+    """Bilinear samples of ``field`` at ``points`` (..., 2) = (x, y); ``outside`` off the grid.
+
+    One ``cv2.remap`` over the points laid out as a two-channel map: as given when that fits
+    (OpenCV wants sides under 32767), in rows of 1024 points otherwise. The result has the
+    shape of ``points`` without its last axis.
+    """
+    shape = points.shape[:-1]
+    if points.size == 0:
+        return np.zeros(shape, dtype=np.float32)
+    grid = np.asarray(points, dtype=np.float32)
+    if grid.ndim == 2:
+        grid = grid.reshape(1, -1, 2)
+    if grid.ndim != 3 or max(grid.shape[:2]) >= 32_000:
+        flat = grid.reshape(-1, 2)
+        n, width = flat.shape[0], 1024
         grid = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
-        grid[:n] = points
+        grid[:n] = flat
         grid = grid.reshape(-1, width, 2)
     out = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
         field,
@@ -196,7 +214,8 @@ def sample_nearby(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=float(outside),
     )
-    return np.asarray(out, dtype=np.float32).reshape(-1)[:n]
+    count = int(np.prod(shape))
+    return np.asarray(out, dtype=np.float32).reshape(-1)[:count].reshape(shape)
 
 
 def polish_transform(
@@ -214,7 +233,8 @@ def polish_transform(
     walls bias by a cell or a fraction of a degree; the measure itself counts cells within
     the threshold. This search climbs the (smoothed) count directly: it tries steps in
     rotation (about the centroid of the points) and in x and y, keeps any improvement, and
-    halves the steps when none helps, down to 0.02 degrees and 0.05 cells.
+    halves the steps when none helps, down to 0.02 degrees and 0.05 cells. The moves of a
+    round are scored together (:func:`soft_agreements`) and the best improving one is taken.
     """
     if points.shape[0] > max_points:
         points = points[:: int(math.ceil(points.shape[0] / max_points))]
@@ -231,21 +251,25 @@ def polish_transform(
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
-        improved = False
-        for dr, dx, dy in (
-            (rot_step, 0, 0),
-            (-rot_step, 0, 0),
-            (0, shift_step, 0),
-            (0, -shift_step, 0),
-            (0, 0, shift_step),
-            (0, 0, -shift_step),
-        ):
-            cand = around(best, dr, dx, dy)
-            score = soft_agreement(distance_map, cand.apply(points), threshold)
-            evaluations += 1
-            if score > best_score:
-                best, best_score, improved = cand, score, True
-        if not improved:
+        # the six compass moves around the current best, scored together; the best one is
+        # taken if it improves, else the steps are halved
+        moves = [
+            around(best, dr, dx, dy)
+            for dr, dx, dy in (
+                (rot_step, 0.0, 0.0),
+                (-rot_step, 0.0, 0.0),
+                (0.0, shift_step, 0.0),
+                (0.0, -shift_step, 0.0),
+                (0.0, 0.0, shift_step),
+                (0.0, 0.0, -shift_step),
+            )
+        ]
+        scores = soft_agreements(distance_map, moves, points, threshold)
+        evaluations += len(moves)
+        k = int(np.argmax(scores))
+        if scores[k] > best_score:
+            best, best_score = moves[k], float(scores[k])
+        else:
             rot_step *= 0.5
             shift_step *= 0.5
     return best
