@@ -8,6 +8,7 @@ the peaks are refined to sub-bin precision and a final full-resolution refinemen
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -64,14 +65,22 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     return np.ascontiguousarray(img.T, dtype=np.float32)
 
 
+@lru_cache(maxsize=16)
 def hann_window(shape: tuple[int, int]) -> F32:
-    """Separable 2D Hann window (positive everywhere, so no row or column is lost)."""
+    """Separable 2D Hann window (positive everywhere, so no row or column is lost).
+
+    Memoised (a pure function of ``shape``; the array is read-only): every registration of
+    maps of the same extent uses the same window.
+    """
     rows, cols = shape
     wr = np.hanning(rows + 2)[1:-1].astype(np.float32)
     wc = np.hanning(cols + 2)[1:-1].astype(np.float32)
-    return np.outer(wr, wc)
+    window = np.outer(wr, wc)
+    window.setflags(write=False)
+    return window
 
 
+@lru_cache(maxsize=16)
 def polar_grid(
     size: int, n_angles: int, band: tuple[float, float], n_radii: int
 ) -> tuple[F32, F32]:
@@ -83,12 +92,16 @@ def polar_grid(
     cycles/cell) linearly interpolated; output column ``a`` is the direction
     ``phi = -pi/2 + a*pi/n_angles`` of ``(fx, fy) = (x, y)`` frequency: the magnitude of a
     real image is point-symmetric, so half a turn covers every direction.
+
+    Memoised like :func:`hann_window` (read-only arrays).
     """
     low, high = band
     radii = np.linspace(low * 0.5, high * 0.5, n_radii) * size
     phi = -0.5 * math.pi + np.arange(n_angles) * (math.pi / n_angles)
     map_x = (radii[:, None] * np.cos(phi)[None, :]).astype(np.float32)
     map_y = (radii[:, None] * np.sin(phi)[None, :] + size // 2).astype(np.float32)
+    map_x.setflags(write=False)
+    map_y.setflags(write=False)
     return map_x, map_y
 
 
@@ -113,11 +126,18 @@ def log_polar_signature(
 
 
 def whiten(spectrum: NDArray[np.complex64]) -> NDArray[np.complex64]:
-    """Phase-only spectrum ``F / |F|`` (zero where ``|F|`` is negligible)."""
-    mag = np.abs(spectrum)
+    """Phase-only spectrum ``F / |F|`` (zero where ``|F|`` is negligible).
+
+    Works in place (and returns its argument) when given a complex64 array: the spectra
+    whitened here are temporaries.
+    """
+    out = spectrum if spectrum.dtype == np.complex64 else spectrum.astype(np.complex64)
+    mag = np.abs(out)
     eps = np.float32(1e-6) * (float(mag.max()) if mag.size else 1.0) + np.float32(1e-30)
-    out = spectrum / np.maximum(mag, eps)
-    return out.astype(np.complex64, copy=False)
+    np.maximum(mag, eps, out=mag)
+    np.reciprocal(mag, out=mag)
+    out *= mag
+    return out
 
 
 def parabolic_offset(left: float, centre: float, right: float) -> float:

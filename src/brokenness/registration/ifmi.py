@@ -72,6 +72,9 @@ __all__ = ["IFMIRegistrar"]
 #: Padded sizes whose reference spectrum a prepared reference keeps (moving maps of
 #: different extents need different paddings; the recursion registers a handful).
 _SPECTRA_CACHED = 8
+#: Cells of margin the reference's distance map keeps around its walls' bounding box; more
+#: than any inlier radius of the refinement (which starts at ``2 * factor + 2`` cells).
+_DISTANCE_MARGIN = 64
 
 
 @dataclass
@@ -88,7 +91,8 @@ class _Prepared:
     rotation_factor: int
     offset: tuple[int, int]  # (col0, row0) of the cropped reference in full cells
     crop: NDArray[np.bool_]  # occupied cells inside the bounding box, full resolution
-    distance: NDArray[np.float32] | None  # full-resolution distance map (refinement)
+    distance: NDArray[np.float32] | None  # full-resolution distance map (refinement) ...
+    distance_offset: tuple[int, int]  # ... of the cells from (col0, row0) on
     levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
     signatures: dict[int, NDArray[np.complex64]] = field(default_factory=dict)
     spectra: dict[tuple[int, int, int], NDArray[np.complex64]] = field(default_factory=dict)
@@ -135,6 +139,12 @@ def _shift(tx: float, ty: float) -> NDArray[np.float64]:
 
 def _scale(s: float) -> NDArray[np.float64]:
     return np.array([[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _local(ref: _Prepared, matrix: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``matrix`` (moving -> reference cells) into the frame of the reference's distance map."""
+    col0, row0 = ref.distance_offset
+    return _shift(-col0, -row0) @ matrix
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> None:
@@ -260,9 +270,6 @@ class IFMIRegistrar:
         self.max_points = int(max_points)
         self.agree_cells = float(agree_cells)
         self.workers = None if workers is None else int(workers)
-        # per-shape caches (windows, polar grids); instance state, never global
-        self._windows: dict[tuple[int, int], NDArray[np.float32]] = {}
-        self._grids: dict[int, tuple[NDArray[np.float32], NDArray[np.float32]]] = {}
 
     def __repr__(self) -> str:
         return (
@@ -271,25 +278,11 @@ class IFMIRegistrar:
         )
 
     # -- cached helpers -----------------------------------------------------------------------
-    def _window(self, shape: tuple[int, int]) -> NDArray[np.float32]:
-        win = self._windows.get(shape)
-        if win is None:
-            win = self._windows[shape] = _spectral.hann_window(shape)
-        return win
-
-    def _grid(self, size: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-        grid = self._grids.get(size)
-        if grid is None:
-            grid = self._grids[size] = _spectral.polar_grid(
-                size, self.n_angles, self.band, self.n_radii
-            )
-        return grid
-
     def _signature(self, image: NDArray[np.float32]) -> NDArray[np.complex64]:
         size = scipy.fft.next_fast_len(max(image.shape), real=True)
-        return _spectral.log_polar_signature(
-            image, self._window(image.shape), size, self._grid(size), self.workers
-        )
+        window = _spectral.hann_window(image.shape)
+        grid = _spectral.polar_grid(size, self.n_angles, self.band, self.n_radii)
+        return _spectral.log_polar_signature(image, window, size, grid, self.workers)
 
     # -- protocol -----------------------------------------------------------------------------
     def prepare_reference(self, reference_states: NDArray[np.int8]) -> _Prepared:
@@ -317,8 +310,19 @@ class IFMIRegistrar:
             rotation_factor=rot_factor,
             offset=(c0, r0),
             crop=np.ascontiguousarray(occ[r0:r1, c0:c1]),
-            distance=_refine.distance_field(_refine.edges(occ)) if self.refine else None,
+            distance=None,
+            distance_offset=(0, 0),
         )
+        if self.refine:
+            # The distance map is only read near the reference's walls (within the inlier
+            # radius of the refinement), so it covers their bounding box and a margin: real
+            # maps often have wide unknown borders.
+            h, w = occ.shape
+            margin = max(_DISTANCE_MARGIN, 2 * factor + 8)
+            dr0, dr1 = max(r0 - margin, 0), min(r1 + margin, h)
+            dc0, dc1 = max(c0 - margin, 0), min(c1 + margin, w)
+            prepared.distance = _refine.distance_field(_refine.edges(occ[dr0:dr1, dc0:dc1]))
+            prepared.distance_offset = (dc0, dr0)
         self._reference_signature(prepared, rot_factor)  # the usual work, done up front
         self._level(prepared, factor)
         return prepared
@@ -370,7 +374,7 @@ class IFMIRegistrar:
         spec = ref.spectra.get(key)
         if spec is None:
             raw = scipy.fft.rfft2(self._level(ref, factor), s=padded, workers=self.workers)
-            spec = _spectral.whiten(raw.astype(np.complex64))
+            spec = _spectral.whiten(raw)  # in place: raw is ours
             if len(ref.spectra) >= _SPECTRA_CACHED:  # bounded: drop the oldest padding
                 del ref.spectra[next(iter(ref.spectra))]
             ref.spectra[key] = spec
@@ -463,7 +467,7 @@ class IFMIRegistrar:
             full = self._snap(to_ref @ matrix @ from_mov)
             n0 = 0
             if ref.distance is not None:
-                n0 = _refine.inlier_count(ref.distance, mov.points, full, start)
+                n0 = _refine.inlier_count(ref.distance, mov.points, _local(ref, full), start)
             prescreen.append((n0, z, full))
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
@@ -477,7 +481,7 @@ class IFMIRegistrar:
                 # refine the hypotheses that are at least half as good near the walls as the
                 # best one; the refinement only gains cells already near a wall, so the rest
                 # are very unlikely to win and keep their spectral estimate (saves time)
-                full, score = self._refined(ref.distance, memo, full, start, 2 * n0 >= best_n0)
+                full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
             moved = mov.points @ full[:2, :2].T + full[:2, 2]
             if any(self._same(moved, other) for other in placed):
                 continue
@@ -494,7 +498,7 @@ class IFMIRegistrar:
 
     def _refined(
         self,
-        distance: NDArray[np.float32],
+        ref: _Prepared,
         memo: _Memo,
         full: NDArray[np.float64],
         start: float,
@@ -505,21 +509,24 @@ class IFMIRegistrar:
         hit = memo.refined.get(key)
         if hit is not None:
             return hit
+        assert ref.distance is not None
         points = memo.moving.points
-        score = _refine.inlier_count(distance, points, full, self.agree_cells)
+        local = _local(ref, full)
+        score = _refine.inlier_count(ref.distance, points, local, self.agree_cells)
         out = full
         if refine:
             refined = _refine.refine_rigid(
-                distance,
+                ref.distance,
                 points,
-                full,
+                local,
                 start_radius=start,
                 end_radius=self.agree_cells,
                 iterations=self.refine_iterations,
             )
-            after = _refine.inlier_count(distance, points, refined, self.agree_cells)
+            after = _refine.inlier_count(ref.distance, points, refined, self.agree_cells)
             if after >= score:
-                out, score = refined, after
+                col0, row0 = ref.distance_offset
+                out, score = _shift(col0, row0) @ refined, after
         memo.refined[key] = (out, score)
         return out, score
 
@@ -596,9 +603,7 @@ class IFMIRegistrar:
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=0.0,
             )
-            spec = _spectral.whiten(
-                scipy.fft.rfft2(canvas, s=padded, workers=self.workers).astype(np.complex64)
-            )
+            spec = _spectral.whiten(scipy.fft.rfft2(canvas, s=padded, workers=self.workers))
             for twin in (False, True):
                 cross = spec_ref * (spec if twin else np.conj(spec))
                 surface = scipy.fft.irfft2(cross, s=padded, workers=self.workers)
