@@ -135,8 +135,11 @@ def test_yaml_manifest_and_options(maps, tmp_path):
     manifest.write_text(yaml.safe_dump(doc))
     summary = run_batch(manifest, tmp_path, workers=1, progress=False, options=FAST)
     (row,) = summary.rows
-    assert row.status == "done" and row.labels == {"dataset": "rooms", "system": "alpha",
-                                                   "noise": "0.1"}
+    assert row.status == "done" and row.labels == {
+        "dataset": "rooms",
+        "system": "alpha",
+        "noise": "0.1",
+    }
     record = load_results(tmp_path / row.result)
     assert record.info["parameters"]["threshold"] == 3.0
 
@@ -192,8 +195,19 @@ def cli(monkeypatch):
 
 def test_cli_batch_exit_codes(cli, maps, tmp_path, capsys):
     out = tmp_path / "out"
-    code = cli(["batch", str(maps / "manifest.csv"), "--out", str(out), "--workers", "1",
-                "--no-progress", "--method", "ifmi"])
+    code = cli(
+        [
+            "batch",
+            str(maps / "manifest.csv"),
+            "--out",
+            str(out),
+            "--workers",
+            "1",
+            "--no-progress",
+            "--method",
+            "ifmi",
+        ]
+    )
     stdout = capsys.readouterr().out
     assert code == 1  # ran to the end, one pair failed
     assert "5 pairs: 4 evaluated, 0 already done, 1 failed" in stdout
@@ -231,8 +245,18 @@ def test_cli_local_cluster(cli, maps, tmp_path, capsys):
     pytest.importorskip("distributed")
     good = tmp_path / "good.csv"
     good.write_text(f"map,reference\n{maps / 'alpha_0.1.yaml'},{maps / 'ref.yaml'}\n")
-    code = cli(["batch", str(good), "--out", str(tmp_path / "o"), "--local-cluster",
-                "--workers", "1", "--no-progress"])
+    code = cli(
+        [
+            "batch",
+            str(good),
+            "--out",
+            str(tmp_path / "o"),
+            "--local-cluster",
+            "--workers",
+            "1",
+            "--no-progress",
+        ]
+    )
     assert code == 0, capsys.readouterr()
     (zipped,) = (tmp_path / "o").glob("*.zip")
     assert load_results(zipped).degree == 1
@@ -240,8 +264,17 @@ def test_cli_local_cluster(cli, maps, tmp_path, capsys):
 
 def test_cli_scheduler_and_local_cluster_exclusive(cli, maps, tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
-        cli(["batch", str(maps / "manifest.csv"), "--out", str(tmp_path),
-             "--scheduler", "tcp://127.0.0.1:1", "--local-cluster"])
+        cli(
+            [
+                "batch",
+                str(maps / "manifest.csv"),
+                "--out",
+                str(tmp_path),
+                "--scheduler",
+                "tcp://127.0.0.1:1",
+                "--local-cluster",
+            ]
+        )
     assert info.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
 
@@ -249,8 +282,13 @@ def test_cli_scheduler_and_local_cluster_exclusive(cli, maps, tmp_path, capsys):
 def test_unreachable_scheduler_is_one_line(maps, tmp_path):
     pytest.importorskip("distributed")
     with pytest.raises(brokenness.ParameterError) as info:
-        run_batch(maps / "manifest.csv", tmp_path, scheduler="tcp://127.0.0.1:9",
-                  progress=False, connect_timeout=0.5)
+        run_batch(
+            maps / "manifest.csv",
+            tmp_path,
+            scheduler="tcp://127.0.0.1:9",
+            progress=False,
+            connect_timeout=0.5,
+        )
     assert str(info.value).startswith("cannot connect to the Dask scheduler at tcp://127.0.0.1:9")
     assert "\n" not in str(info.value)
     assert not list(tmp_path.glob("*.zip"))

@@ -66,8 +66,12 @@ def test_small_log_scans_beams_angles(log: CarmenLog) -> None:
 
 
 def test_flaser_angle_rules() -> None:
-    for n, first, step, last in ((180, -90, 1.0, 89), (181, -90, 1.0, 90),
-                                 (360, -90, 0.5, 89.5), (361, -90, 0.5, 90)):
+    for n, first, step, last in (
+        (180, -90, 1.0, 89),
+        (181, -90, 1.0, 90),
+        (360, -90, 0.5, 89.5),
+        (361, -90, 0.5, 90),
+    ):
         deg = np.degrees(flaser_angles(n))
         assert len(deg) == n
         assert deg[0] == pytest.approx(first) and deg[-1] == pytest.approx(last)
@@ -145,11 +149,32 @@ def test_robotlaser1_lines_match_flaser(log: CarmenLog, lines: list[str], tmp_pa
     for ln in [ln for ln in lines if ln.startswith("FLASER")][:30]:
         tok = ln.split()
         n = int(tok[1])
-        ranges, pose = tok[2:2 + n], tok[2 + n:5 + n]
-        out.append(" ".join(
-            ["ROBOTLASER1", "0", repr(-math.pi / 2), repr(math.pi), repr(math.pi / 180),
-             "32.767", "0.01", "0", str(n), *ranges, "2", "7", "8", *pose, *pose,
-             "0 0 0.5 0.2 1", "1.5", "host", "1.5"]))
+        ranges, pose = tok[2 : 2 + n], tok[2 + n : 5 + n]
+        out.append(
+            " ".join(
+                [
+                    "ROBOTLASER1",
+                    "0",
+                    repr(-math.pi / 2),
+                    repr(math.pi),
+                    repr(math.pi / 180),
+                    "32.767",
+                    "0.01",
+                    "0",
+                    str(n),
+                    *ranges,
+                    "2",
+                    "7",
+                    "8",
+                    *pose,
+                    *pose,
+                    "0 0 0.5 0.2 1",
+                    "1.5",
+                    "host",
+                    "1.5",
+                ]
+            )
+        )
         out.append(ln)  # FLASER lines are ignored when ROBOTLASER1 lines are present
     got = read_carmen(_write(tmp_path / "robot.log", out))
     assert got.message == "ROBOTLASER1"
@@ -247,8 +272,9 @@ def test_map_options(log: CarmenLog) -> None:
     shape, origin = log_geometry(log, resolution=0.2, max_range=10.0)
     m = map_log(log, resolution=0.2, max_range=10.0, shape=shape, origin=origin)
     assert m.shape == shape and m.origin == origin
-    cleared = map_log(log, resolution=0.2, max_range=10.0, shape=shape, origin=origin,
-                      clear_no_returns=True)
+    cleared = map_log(
+        log, resolution=0.2, max_range=10.0, shape=shape, origin=origin, clear_no_returns=True
+    )
     assert cleared.free.sum() > m.free.sum()  # no returns now clear space up to 10 m
     with pytest.raises(ParameterError):
         map_log(log, resolution=0.2, shape=shape)

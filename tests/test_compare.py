@@ -88,8 +88,13 @@ def test_grouped_table_figures(batch_dir):
     assert table.group_by == ("system", "noise")
     recs = table.records()
     keys = [(r["system"], r["noise"]) for r in recs]
-    assert keys == [("alpha", "0.0"), ("alpha", "0.2"), ("beta", "0.0"), ("beta", "0.2"),
-                    ("beta", "0.4")]
+    assert keys == [
+        ("alpha", "0.0"),
+        ("alpha", "0.2"),
+        ("beta", "0.0"),
+        ("beta", "0.2"),
+        ("beta", "0.4"),
+    ]
     a0, a2, b0, b2, b4 = recs
     assert (a0["results"], a0["failed"], a0["mean_degree"], a0["median_degree"]) == (2, 0, 0, 0)
     assert a0["mean_largest_fraction"] == pytest.approx(1.0)
@@ -98,15 +103,19 @@ def test_grouped_table_figures(batch_dir):
     assert b2["mean_largest_fraction"] < 0.8
     assert (b4["results"], b4["failed"], b4["mean_degree"]) == (0, 1, None)
     # mean over the members, computed here from the entries themselves
-    beta02 = [e for e in entries if e.labels.get("system") == "beta"
-              and e.labels.get("noise") == "0.2"]
+    beta02 = [
+        e for e in entries if e.labels.get("system") == "beta" and e.labels.get("noise") == "0.2"
+    ]
     assert b2["mean_largest_fraction"] == pytest.approx(
-        np.mean([e.largest_fraction for e in beta02]))
+        np.mean([e.largest_fraction for e in beta02])
+    )
     assert b2["mean_psi_repaired"] == pytest.approx(np.mean([e.psi_repaired for e in beta02]))
 
     by_system = group_table(entries, ["system"]).records()
     assert [(r["system"], r["results"], r["failed"]) for r in by_system] == [
-        ("alpha", 3, 0), ("beta", 3, 1)]
+        ("alpha", 3, 0),
+        ("beta", 3, 1),
+    ]
     assert by_system[1]["mean_degree"] == pytest.approx(2 / 3)
     assert by_system[1]["median_degree"] == 1.0
     with pytest.raises(ParameterError, match="no result has the label 'dataset'"):
@@ -208,8 +217,20 @@ def cli(monkeypatch):
 
 def test_cli_compare(cli, batch_dir, tmp_path, capsys):
     table, plot = tmp_path / "t.md", tmp_path / "p.png"
-    code = cli(["compare", str(batch_dir), "--group-by", "system", "--table", str(table),
-                "--plot", str(plot), "--dpi", "60"])
+    code = cli(
+        [
+            "compare",
+            str(batch_dir),
+            "--group-by",
+            "system",
+            "--table",
+            str(table),
+            "--plot",
+            str(plot),
+            "--dpi",
+            "60",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0
     assert "6 result(s), 1 failure(s)" in out and "alpha" in out and "beta" in out

@@ -90,3 +90,25 @@ def test_unmatched_reference_removes_the_manhattan_neighbourhood():
     # (10, 10) is at distance 2 of (x=10, y=8): removed; (11, 10) at 3: kept
     assert removed[10, 10] and not removed[10, 11] and not removed[10, 9]
     assert np.array_equal(unmatched_reference(ref, np.empty((0, 2)), 2), ref)
+
+
+def test_nearest_points_matches_a_kd_tree():
+    """The lookup-table answer (one remap) is the KD-tree's on rounded queries, with points
+    beyond reach or off the grid reported as inf."""
+    rng = np.random.default_rng(3)
+    states = np.where(rng.random((90, 120)) < 0.03, 1, 0).astype(np.int8)
+    index = ReferenceIndex.build(OccupancyMap(states))
+    pts = rng.random((3000, 2)) * [160, 130] - 20  # some off the grid
+    got = index.nearest_points(pts, 4.0)
+    rounded = np.rint(pts)
+    dist, idx = index.tree.query(rounded)
+    inside = (rounded[:, 0] >= 0) & (rounded[:, 0] < 120) & (rounded[:, 1] >= 0)
+    inside &= rounded[:, 1] < 90
+    reach = np.linalg.norm(index.occupied_points[idx] - pts, axis=1) <= 4.0
+    found = np.isfinite(got[:, 0])
+    # ties between equally near cells may pick either: compare distances, not cells
+    near_got = np.linalg.norm(got[found] - rounded[found], axis=1)
+    assert np.allclose(near_got, dist[found])
+    assert np.all(np.linalg.norm(got[found] - pts[found], axis=1) <= 4.0)
+    assert np.count_nonzero(found != (inside & reach)) <= 0.01 * len(pts)  # ties only
+    assert not found[~inside].any()

@@ -444,3 +444,23 @@ def test_translation_peaks_option_is_checked():
 
     with pytest.raises(ParameterError):
         IFMIRegistrar(translation_peaks=0)
+
+
+def test_remembered_analysis_is_only_reused_for_the_same_map(
+    maps: dict[str, OccupancyMap],
+) -> None:
+    """A prepared reference remembers the last moving map; a wider second call on it gives
+    what a fresh registrar gives, and a changed map (same array object) is analysed anew."""
+    ref = maps["building"].states
+    moving, true = transformed(ref, -41.0, (5, -7))
+    narrow = IFMIRegistrar(rotation_peaks=2)
+    wide = IFMIRegistrar(rotation_peaks=6, peak_ratio=0.0)
+    prepared = narrow.prepare_reference(ref)
+    narrow.candidates(prepared, moving, 4)
+    assert wide.candidates(prepared, moving, 8) == wide.candidates(
+        wide.prepare_reference(ref), moving, 8
+    )
+    # mutate the very same array: the remembered analysis must not be used
+    other, true_other = transformed(ref, 63.0, (-4, 6), shape=moving.shape)
+    moving[...] = other
+    check(narrow.candidates(prepared, moving, 4)[0].transform, true_other, moving)

@@ -88,8 +88,7 @@ def test_overlay_nothing_clipped(tmp_path, shape):
     n = n0 + n1
     t = RigidTransform(0.1, 2.0, 3.0)
     parts = tuple(
-        Partition(i, c, c / n, t, 0.9, 0.0, 123.45, 6.17, 0.0)
-        for i, c in enumerate((n0, n1))
+        Partition(i, c, c / n, t, 0.9, 0.0, 123.45, 6.17, 0.0) for i, c in enumerate((n0, n1))
     )
     result = BrokennessResult(1, parts, labels, n, 0, "ifmi", {}, 0.0)
     fig = overlay_figure(result, m, m)

@@ -67,8 +67,17 @@ def broken_rooms() -> tuple[OccupancyMap, OccupancyMap, BrokennessResult]:
     t0 = RigidTransform.identity().with_world(m, ref)
     parts = (
         Partition(0, c0, c0 / n, t0, 0.95, 0.0, 0.0, 0.0, 0.01),
-        Partition(1, c1, c1 / n, t1, 0.9, 0.0, float(np.hypot(dx, dy)),
-                  float(np.hypot(dx, dy)) * 0.05, 0.02),
+        Partition(
+            1,
+            c1,
+            c1 / n,
+            t1,
+            0.9,
+            0.0,
+            float(np.hypot(dx, dy)),
+            float(np.hypot(dx, dy)) * 0.05,
+            0.02,
+        ),
     )
     result = BrokennessResult(
         degree=1,

@@ -31,7 +31,7 @@ def top_first(seed: int = 0, rows: int = 7, cols: int = 11) -> np.ndarray:
     g[0, :] = 100  # top wall only
     g[:, 0] = 100  # left wall only
     g[rows - 2, cols - 3] = 100  # one pillar near the bottom right
-    g[1:3, cols - 2:] = -1  # unknown block at the top right
+    g[1:3, cols - 2 :] = -1  # unknown block at the top right
     g[rows - 1, 1:4] = 50  # 50 %: unknown by the thresholds
     g[2, 2 + seed % 5] = 100  # differs per message
     return g
@@ -59,8 +59,8 @@ def grid_msg(ts, values_top_first, *, res=0.05, origin=(1.5, -2.25, 0.7), stamp=
         orientation=Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
     )
     t = Time(sec=stamp, nanosec=0)
-    header = Header(seq=stamp, stamp=t, frame_id="map") if ts is TS1 else Header(
-        stamp=t, frame_id="map"
+    header = (
+        Header(seq=stamp, stamp=t, frame_id="map") if ts is TS1 else Header(stamp=t, frame_id="map")
     )
     info = MapMetaData(map_load_time=t, resolution=res, width=cols, height=rows, origin=pose)
     # ROS: row-major from the bottom-left cell -> our bottom row first
@@ -99,8 +99,12 @@ def three_maps(ts):
         ("/map", GRID, grid_msg(ts, top_first(0), stamp=1), 1_000_000_000),
         ("/chatter", STRING, string_msg(ts), 1_500_000_000),
         ("/map", GRID, grid_msg(ts, top_first(1), stamp=2), 2_000_000_000),
-        ("/map", GRID, grid_msg(ts, top_first(2), origin=(-3.0, 4.0, -2.5), res=0.1, stamp=3),
-         3_000_000_000),
+        (
+            "/map",
+            GRID,
+            grid_msg(ts, top_first(2), origin=(-3.0, 4.0, -2.5), res=0.1, stamp=3),
+            3_000_000_000,
+        ),
     ]
 
 
@@ -125,9 +129,7 @@ def test_ros1_bag_exact_and_last_message_wins(tmp_path):
 
 def test_ros1_single_message_keeps_orientation(tmp_path):
     values = top_first(0)
-    bag = write_ros1(
-        tmp_path / "one.bag", [("/slam/map", GRID, grid_msg(TS1, values), 5)]
-    )
+    bag = write_ros1(tmp_path / "one.bag", [("/slam/map", GRID, grid_msg(TS1, values), 5)])
     m = load_bag_map(bag, topic="/slam/map")
     # the flip: the top row is the full wall, the bottom row is not
     assert m.states[0].tolist() == [OCCUPIED] * 11

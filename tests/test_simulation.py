@@ -64,8 +64,9 @@ def _brute_counts(poses, ranges, angles, max_range, res, shape, origin, step=0.5
 
 
 def test_map_scans_single_beam_geometry():
-    m = map_scans([[0.52, 0.52, 0.0]], [[0.3]], [0.0], max_range=4.0, resolution=0.1,
-                  shape=(10, 10))
+    m = map_scans(
+        [[0.52, 0.52, 0.0]], [[0.3]], [0.0], max_range=4.0, resolution=0.1, shape=(10, 10)
+    )
     assert m.resolution == 0.1 and m.origin == (0.0, 0.0, 0.0)
     row = 10 - 1 - 5
     assert m.states[row, 8] == OCCUPIED  # end point x = 0.82
@@ -75,8 +76,14 @@ def test_map_scans_single_beam_geometry():
 
 
 def test_no_hit_beam_clears_to_max_range_and_invalid_is_ignored():
-    c = scan_counts([[0.05, 0.55, 0.0]] * 3, [[np.inf], [9.0], [0.0]], [0.0], max_range=0.6,
-                    resolution=0.1, shape=(10, 10))
+    c = scan_counts(
+        [[0.05, 0.55, 0.0]] * 3,
+        [[np.inf], [9.0], [0.0]],
+        [0.0],
+        max_range=0.6,
+        resolution=0.1,
+        shape=(10, 10),
+    )
     assert c.hits.sum() == 0
     row = 10 - 1 - 5
     assert (c.misses[row, :7] == 2).all()  # inf and 9 m >= max range: free to x = 0.65
@@ -85,15 +92,17 @@ def test_no_hit_beam_clears_to_max_range_and_invalid_is_ignored():
 
 def test_scan_counts_matches_per_beam_reference_and_counts_dropped():
     rng = np.random.default_rng(3)
-    poses = np.column_stack([rng.uniform(0.5, 2.5, 6), rng.uniform(0.5, 2.5, 6),
-                             rng.uniform(-3, 3, 6)])
+    poses = np.column_stack(
+        [rng.uniform(0.5, 2.5, 6), rng.uniform(0.5, 2.5, 6), rng.uniform(-3, 3, 6)]
+    )
     angles = np.linspace(-2.0, 2.0, 23)
     ranges = rng.uniform(0.05, 2.5, (6, 23))
     ranges[0, :4] = np.inf
     ranges[1, 3] = -1.0
     shape, origin = (30, 32), (0.0, 0.1, 0.0)
-    got = scan_counts(poses, ranges, angles, max_range=2.0, resolution=0.1, shape=shape,
-                      origin=origin)
+    got = scan_counts(
+        poses, ranges, angles, max_range=2.0, resolution=0.1, shape=shape, origin=origin
+    )
     hits, misses = _brute_counts(poses, ranges, angles, 2.0, 0.1, shape, origin)
     np.testing.assert_array_equal(got.hits, hits)
     # float32 marching may put a sample on the other side of a cell border now and then
@@ -103,11 +112,23 @@ def test_scan_counts_matches_per_beam_reference_and_counts_dropped():
 
 def test_map_scans_bad_input():
     with pytest.raises(ParameterError):
-        map_scans(np.zeros((2, 3)), np.ones((2, 4)), np.zeros(3), max_range=1, resolution=0.1,
-                  shape=(5, 5))
+        map_scans(
+            np.zeros((2, 3)),
+            np.ones((2, 4)),
+            np.zeros(3),
+            max_range=1,
+            resolution=0.1,
+            shape=(5, 5),
+        )
     with pytest.raises(ParameterError):
-        map_scans(np.zeros((1, 3)), np.ones((1, 1)), np.zeros(1), max_range=-1,
-                  resolution=0.1, shape=(5, 5))
+        map_scans(
+            np.zeros((1, 3)),
+            np.ones((1, 1)),
+            np.zeros(1),
+            max_range=-1,
+            resolution=0.1,
+            shape=(5, 5),
+        )
     with pytest.raises(ParameterError):
         grid_geometry(np.full((3, 2), np.nan), 0.1)
 
@@ -128,8 +149,9 @@ def test_cast_rays_in_a_box():
     solid[:5], solid[-5:], solid[:, :5], solid[:, -5:] = True, True, True, True
     angles = np.array([0.0, math.pi / 2, math.pi, -math.pi / 2, math.atan2(1.0, 2.0)])
     r = cast_rays(solid, res, [[2.0, 1.5, 0.0]], angles, max_range=10.0)[0]
-    expect = np.array([6 - 0.1 - 2.0, 4 - 0.1 - 1.5, 2.0 - 0.1, 1.5 - 0.1,
-                       math.hypot(5.9 - 2.0, (5.9 - 2.0) / 2)])  # right wall first
+    expect = np.array(
+        [6 - 0.1 - 2.0, 4 - 0.1 - 1.5, 2.0 - 0.1, 1.5 - 0.1, math.hypot(5.9 - 2.0, (5.9 - 2.0) / 2)]
+    )  # right wall first
     np.testing.assert_allclose(r, expect, atol=res)
     short = cast_rays(solid, res, [[2.0, 1.5, 0.0]], angles, max_range=1.0)[0]
     assert (short == 1.0).all()  # nothing within 1 m: exactly max_range
@@ -211,9 +233,16 @@ def test_degree_mode_gives_honest_degree_and_true_transforms(degree):
     _verify_ground_truth(sim)
     # the broken map's canvas holds every beam end point (nothing fell off)
     run = sim.run
-    counts = scan_counts(sim.estimated_poses, run.ranges, run.angles,
-                         max_range=run.laser.max_range, resolution=0.05, shape=sim.map.shape,
-                         origin=sim.map.origin, free_space=False)
+    counts = scan_counts(
+        sim.estimated_poses,
+        run.ranges,
+        run.angles,
+        max_range=run.laser.max_range,
+        resolution=0.05,
+        shape=sim.map.shape,
+        origin=sim.map.origin,
+        free_space=False,
+    )
     assert counts.dropped_hits == 0
     # world part of partition j's transform undoes the accumulated bump rotations
     for j, p in enumerate(sim.partitions):
@@ -268,8 +297,9 @@ def test_compute_brokenness_finds_the_true_transforms(degree):
         if truth.share < 0.3:
             continue  # large partitions only: small ones are where the measure may split
         pts = cell_points(sim.labels == truth.index)
-        best = min(float(p.transform.displacement(truth.transform, pts).mean())
-                   for p in result.partitions)
+        best = min(
+            float(p.transform.displacement(truth.transform, pts).mean()) for p in result.partitions
+        )
         assert best <= 2.0, (truth.index, best)
 
 
@@ -297,7 +327,8 @@ def test_save_simulation_is_byte_identical_and_loadable(tmp_path):
     assert truth["expected_degree"] == 2 and truth["seed"] == 4
     assert len(truth["partitions"]) == 3 and len(truth["bumps"]) == 2
     assert {"rotation_deg", "translation_cells", "world"} <= set(
-        truth["partitions"][1]["transform"])
+        truth["partitions"][1]["transform"]
+    )
     np.testing.assert_array_equal(np.load(paths["labels"]), sim.labels)
     with pytest.raises(ParameterError):
         save_simulation(sim, tmp_path, "../x")
@@ -313,8 +344,12 @@ def _cli(argv):
 
 
 def test_cli_simulate_writes_count_maps(tmp_path, capsys):
-    assert _cli(["--out", str(tmp_path), "--seed", "7", "--degree", "1", "--count", "2",
-                 "--size", "10"]) == 0
+    assert (
+        _cli(
+            ["--out", str(tmp_path), "--seed", "7", "--degree", "1", "--count", "2", "--size", "10"]
+        )
+        == 0
+    )
     names = sorted(p.name for p in tmp_path.glob("*.json"))
     assert names == ["sim_0007.json", "sim_0008.json"]
     assert all(json.loads((tmp_path / n).read_text())["expected_degree"] == 1 for n in names)
