@@ -166,20 +166,31 @@ def run_imreg_dft(ref: np.ndarray, mov: np.ndarray) -> float:
     return -float(res["angle"])
 
 
-def timed(fn: Callable[[], float], repeats: int) -> tuple[float, float, float]:
-    """(median wall seconds, median CPU seconds of this process, last result).
+def timed(
+    jobs: dict[str, tuple[Callable[[], float], int]],
+) -> dict[str, tuple[float, float, float]]:
+    """Per job: (median wall seconds, median CPU seconds of this process, last result).
 
-    CPU time is reported too because the benchmark machine is shared: under load the wall
-    clock of every method stretches, its CPU time much less.
+    The jobs' runs are interleaved (round r runs every job that has more than r repeats),
+    so that the drift of a shared virtual machine's speed affects all methods alike. CPU
+    time is reported too: under load the wall clock of every method stretches, its CPU time
+    much less.
     """
-    wall, cpu = [], []
-    out = 0.0
-    for _ in range(repeats):
-        w0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        cpu.append(time.process_time() - c0)
-        wall.append(time.perf_counter() - w0)
-    return statistics.median(wall), statistics.median(cpu), out
+    wall: dict[str, list[float]] = {name: [] for name in jobs}
+    cpu: dict[str, list[float]] = {name: [] for name in jobs}
+    out: dict[str, float] = {}
+    for r in range(max(reps for _, reps in jobs.values())):
+        for name, (fn, reps) in jobs.items():
+            if r >= reps:
+                continue
+            w0, c0 = time.perf_counter(), time.process_time()
+            out[name] = fn()
+            cpu[name].append(time.process_time() - c0)
+            wall[name].append(time.perf_counter() - w0)
+    return {
+        name: (statistics.median(wall[name]), statistics.median(cpu[name]), out[name])
+        for name in jobs
+    }
 
 
 def peak_memory(ref: np.ndarray, mov: np.ndarray) -> tuple[int, int]:
@@ -240,8 +251,14 @@ def main(argv: list[str] | None = None) -> int:
                 mov, true_deg = moving_map(ref, deg, shift)
                 row = [str(n), name, f"{true_deg:.1f}"]
                 cpu_of = {}
-                for mname, fn, reps in methods:
-                    sec, cpu, est = timed(lambda fn=fn, a=ref, b=mov: fn(a, b), reps)
+                results = timed(
+                    {
+                        mname: (lambda fn=fn, a=ref, b=mov: fn(a, b), reps)
+                        for mname, fn, reps in methods
+                    }
+                )
+                for mname, _, _ in methods:
+                    sec, cpu, est = results[mname]
                     err = angle_error(est, true_deg)
                     worst[mname] = max(worst[mname], err)
                     cpu_of[mname] = cpu
