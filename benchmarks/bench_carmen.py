@@ -66,21 +66,28 @@ def main() -> int:
         return 0
     rng = "whole range" if args.max_range is None else f"{args.max_range:g} m range"
     print(f"map: {args.resolution:g} m cells, {rng}; wall check: 0.1 m cells, 2 cells, 10 m\n")
-    print("| log | scans | beams | max range m | parse s | map s | map cells | occupied "
-          "| cross-half | half-in-full | Psi half/full | bumped cross-half |")
+    print(
+        "| log | scans | beams | max range m | parse s | map s | map cells | occupied "
+        "| cross-half | half-in-full | Psi half/full | bumped cross-half |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for path in paths:
         t_parse, log = best(lambda p=path: read_carmen(p), args.repeat)
-        t_map, m = best(lambda lg=log: map_log(lg, resolution=args.resolution,
-                                               max_range=args.max_range), args.repeat)
+        t_map, m = best(
+            lambda lg=log: map_log(lg, resolution=args.resolution, max_range=args.max_range),
+            args.repeat,
+        )
         check = wall_check(log)
         bumped = wall_check(log, poses=turned(log))
         name = path.name.split(".")[0]
         rows, cols = m.shape
-        print(f"| {name} | {log.n_scans} | {log.n_beams} | {log.max_range:g} | {t_parse:.3f} "
-              f"| {t_map:.2f} | {cols}x{rows} | {m.n_occupied} | {check.cross_half:.3f} "
-              f"| {check.half_in_full:.3f} | {check.psi_half_full:.2f} "
-              f"| {bumped.cross_half:.3f} |", flush=True)
+        print(
+            f"| {name} | {log.n_scans} | {log.n_beams} | {log.max_range:g} | {t_parse:.3f} "
+            f"| {t_map:.2f} | {cols}x{rows} | {m.n_occupied} | {check.cross_half:.3f} "
+            f"| {check.half_in_full:.3f} | {check.psi_half_full:.2f} "
+            f"| {bumped.cross_half:.3f} |",
+            flush=True,
+        )
     return 0
 
 
