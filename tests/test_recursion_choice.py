@@ -29,3 +29,19 @@ def test_the_better_hypothesis_wins_beyond_the_margin():
 def test_without_a_reduced_hypothesis_the_best_is_kept():
     best = _hyp(0.1, 500)
     assert _prefer_unexplained(best, None, margin=50.0) is best
+
+
+def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
+    from brokenness.masking import manhattan_distance_map
+    from brokenness.measure.recursion import _mostly_claimed
+
+    claimed = np.zeros((20, 20), dtype=bool)
+    claimed[5, :] = True  # a wall an earlier partition matched
+    distance = manhattan_distance_map(claimed)
+    points = np.array([[x, 5.0] for x in range(6)] + [[x, 15.0] for x in range(4)])
+    agree = np.ones(len(points), dtype=bool)
+    identity = RigidTransform(0.0, 0.0, 0.0)
+    assert _mostly_claimed((identity, agree), points, distance, 2.0)  # 6 of 10 on it
+    shifted = RigidTransform(0.0, 0.0, 10.0)  # none on it now
+    assert not _mostly_claimed((shifted, agree), points, distance, 2.0)
+    assert not _mostly_claimed((identity, np.zeros(len(points), bool)), points, distance, 2.0)

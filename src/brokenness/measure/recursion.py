@@ -51,11 +51,12 @@ misses the walls it shares with earlier ones, and pieces of it fit better elsewh
 is left (a room turned by 90 or 180 degrees, a corridor shifted) -- one true partition then
 came back as two or three wrongly placed ones. With R alone, a part of a symmetric building
 can fit, equally well, a place an earlier partition already explains (a hexagonal arena
-turned by 60 degrees). Each step therefore asks both, and keeps the best hypothesis among
-all of them (``h_R``) unless the best among those of R' (``h_R'``) explains about as many
-cells: fewer by no more than ``z sigma`` (the chance spread of the stopping rule below, with
-the same ``z``), a difference that coincidence alone could make. Then the part goes where
-nothing else is yet.
+turned by 60 degrees). Each step therefore registers with R, and, when most cells the best
+hypothesis ``h_R`` explains land on walls earlier partitions already matched, with R' too
+(saving the second registration otherwise). It keeps ``h_R`` unless the best hypothesis of
+R' (``h_R'``) explains about as many cells: fewer by no more than ``z sigma`` (the chance
+spread of the stopping rule below, with the same ``z``), a difference that coincidence alone
+could make. Then the part goes where nothing else is yet.
 
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
@@ -80,7 +81,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
-from ..masking import ReferenceIndex, cell_points, unmatched_reference
+from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
+from ..masking.distance import lookup_distance
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -386,21 +388,20 @@ def _recurse(
         chance = n * p0
         spread = math.sqrt(chance * (1.0 - p0))
         needed = max(min_cells, chance + significance * spread)
-        # R' (the reference less the walls matched so far); in the first step it is R.
-        rest = None
-        if found:
-            rest = registrar.prepare_reference(
-                reference_states(index.reference, reference_occupied, uses_free)
-            )
         best = None
-        # A step first asks the registration for its usual hypotheses, with R and with R'
-        # (plus those of the previous step: a part seen there, beside the larger one that
-        # won, is often registered better than from what is left alone); the choice between
-        # the two is :func:`_prefer_unexplained`. If none is significant, or the best (or the
-        # best with R') explains less than half of what is left, it asks once more with a
-        # wider search (``thorough``), and keeps the better answer.
-        # The wider search differs from the usual one only in how many peaks it examines,
-        # so it shares the prepared references.
+        # A step first asks the registration (with R, and with R' when the best hypothesis of
+        # R lies mostly on matched walls: see "Two references") for its usual hypotheses,
+        # plus those of the previous step (a part seen there, beside the larger one that won,
+        # is often registered better than from what is left alone). If none is significant,
+        # or the best (or the best of R') explains less than half of what is left, it asks
+        # once more with a wider search (``thorough``: more peaks, same prepared references),
+        # and keeps the better answer.
+        claimed_distance = None
+        if found:
+            claimed_distance = manhattan_distance_map(
+                index.reference.occupied & ~reference_occupied
+            )
+        rest = None
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
         for attempt in (registrar, thorough):
@@ -408,16 +409,29 @@ def _recurse(
                 continue
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             fresh = attempt.candidates(whole, moving_states, limit)
-            fresh_rest = [] if rest is None else attempt.candidates(rest, moving_states, limit)
-            pool += fresh + fresh_rest
-            pool_rest += fresh_rest
-            carried, carried_rest = fresh + fresh_rest, fresh_rest
+            pool += fresh
+            carried, carried_rest = fresh, []
             best = best_hypothesis(pool, points[left], index, threshold)
             enough = max(needed, _THOROUGH_BELOW * n)
             rest_ok = True
-            if best is not None and pool_rest:
+            if (
+                best is not None
+                and claimed_distance is not None
+                and (
+                    rest is not None
+                    or _mostly_claimed(best, points[left], claimed_distance, threshold)
+                )
+            ):
+                if rest is None:
+                    rest = registrar.prepare_reference(
+                        reference_states(index.reference, reference_occupied, uses_free)
+                    )
+                fresh_rest = attempt.candidates(rest, moving_states, limit)
+                pool_rest += fresh_rest
+                carried += fresh_rest
+                carried_rest = fresh_rest
                 best_rest = best_hypothesis(pool_rest, points[left], index, threshold)
-                rest_ok = best_rest is not None and np.count_nonzero(best_rest[1]) >= enough
+                rest_ok = bool(best_rest is not None and np.count_nonzero(best_rest[1]) >= enough)
                 best = _prefer_unexplained(best, best_rest, significance * spread)
             if best is not None and np.count_nonzero(best[1]) >= enough and rest_ok:
                 break
@@ -475,3 +489,17 @@ def _prefer_unexplained(
     if np.count_nonzero(best_rest[1]) >= np.count_nonzero(best[1]) - margin:
         return best_rest
     return best
+
+
+def _mostly_claimed(
+    best: tuple[RigidTransform, NDArray[np.bool_]],
+    points: NDArray[np.float64],
+    claimed_distance: NDArray[np.float32],
+    threshold: float,
+) -> bool:
+    """Whether most agreeing cells of ``best`` land on walls earlier partitions matched."""
+    transform, agree = best
+    if not agree.any():
+        return False
+    on_claimed = lookup_distance(claimed_distance, transform.apply(points[agree])) <= threshold
+    return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))
