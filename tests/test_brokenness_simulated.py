@@ -60,3 +60,16 @@ def test_higher_degrees_within_bounds(degree):
     errors = np.abs(np.array(found) - degree)
     assert errors.max() <= 2, found
     assert errors.mean() <= 1.0, found
+
+
+@pytest.mark.parametrize(("degree", "seed"), [(2, 1014), (3, 1012), (3, 1019)])
+def test_partitions_that_overlap_in_the_reference_are_found_whole(degree, seed):
+    """Partitions of a run overlap in the reference (the robot sees a corridor before and
+    after a bump). Registering only with the reference less the walls already matched split
+    one true partition of these maps into two or three wrongly placed ones (degree off by one
+    or two); with the whole reference every partition comes back with its true transform."""
+    sim = simulate_broken_map(seed=seed, degree=degree)
+    assert sim.expected_degree == degree
+    result = compute_brokenness(sim.map, sim.reference)
+    assert result.degree == degree
+    assert max(_transform_errors(result, sim)) < 1.5

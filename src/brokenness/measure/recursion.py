@@ -4,8 +4,8 @@ The recursion, for a map M and a reference R::
 
     T = occupied cells of M
     repeat:
-        register T with R                      -> ranked hypotheses (plus the previous
-                                                  step's, which may fit what is left better)
+        register T with R, and with R'         -> ranked hypotheses (plus the previous
+          (R less the walls already matched)      step's, which may fit what is left better)
         refine the best ones on the cells      (rotation sweep, trimmed ICP, compass search
                                                   on the agreement itself: measure.refine)
         L = cells of T that agree with R       (Psi_2: Manhattan distance to an occupied
@@ -14,7 +14,7 @@ The recursion, for a map M and a reference R::
         stop if L is not significant           (see "Stopping rule" below)
         if L is explained by an earlier partition's transform, add it there;
         else count L as a new partition
-        T = T \\ L;  R = R \\ (reference cells matched by L)
+        T = T \\ L;  R' = R' \\ (reference cells matched by L)
     give every cell to the partition whose transform aligns it best (measure.partitions)
 
 Stopping rule ("nothing significant is left")
@@ -40,6 +40,24 @@ Noise: when the reference's walls are connected lines, isolated occupied cells o
 (salt-and-pepper) are hidden from the registration, whose spectra they would flatten; they
 are still counted by the masking.
 
+Two references
+--------------
+Each step registers the remainder with the *whole* reference R, as Algorithm 1 of the paper
+does (``R' \\subseteq L^R`` in its line 6), and with R', the reference less the walls that
+earlier partitions matched. Partitions of a map of a real run usually overlap in the
+reference (a robot sees the same corridor before and after a bump; the paper's definition
+joins the partitions with a union, not a disjoint one): with R' alone, a later partition
+misses the walls it shares with earlier ones, and pieces of it fit better elsewhere in what
+is left (a room turned by 90 or 180 degrees, a corridor shifted) -- one true partition then
+came back as two or three wrongly placed ones. With R alone, a part of a symmetric building
+can fit, equally well, a place an earlier partition already explains (a hexagonal arena
+turned by 60 degrees). Each step therefore registers with R, and, when most cells the best
+hypothesis ``h_R`` explains land on walls earlier partitions already matched, with R' too
+(saving the second registration otherwise). It keeps ``h_R`` unless the best hypothesis of
+R' (``h_R'``) explains about as many cells: fewer by no more than ``z sigma`` (the chance
+spread of the stopping rule below, with the same ``z``), a difference that coincidence alone
+could make. Then the part goes where nothing else is yet.
+
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
 paper's per-step transforms), without resampling T again and again.
@@ -63,7 +81,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
-from ..masking import ReferenceIndex, cell_points, unmatched_reference
+from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
+from ..masking.distance import lookup_distance
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -349,8 +368,12 @@ def _recurse(
     uses_free = bool(getattr(registrar, "uses_free_space", True))
     drop_isolated = walls_connected(index.reference)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    whole = registrar.prepare_reference(
+        reference_states(index.reference, reference_occupied, uses_free)
+    )
     found: list[Found] = []
-    carried: list[Candidate] = []
+    carried: list[Candidate] = []  # the previous step's hypotheses, from R and R'
+    carried_rest: list[Candidate] = []  # ... from R' only
     steps = 0
     while np.count_nonzero(remaining) >= min_cells and len(found) < max_partitions:
         steps += 1
@@ -360,31 +383,58 @@ def _recurse(
         moving_states = remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
         if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
             break  # what is left is scattered noise: nothing to register
-        ref_states = reference_states(index.reference, reference_occupied, uses_free)
         left = np.flatnonzero(remaining)
         n = left.size
         chance = n * p0
-        needed = max(min_cells, chance + significance * math.sqrt(chance * (1.0 - p0)))
+        spread = math.sqrt(chance * (1.0 - p0))
+        needed = max(min_cells, chance + significance * spread)
         best = None
-        # A step first asks the registration for its usual hypotheses (plus those of the
-        # previous step: a part seen there, beside the larger one that won, is often
-        # registered better than from what is left alone). If none is significant, or the
-        # best explains less than half of what is left, it asks once more with a wider search
-        # (``thorough``), and keeps the better answer.
-        # The wider search differs from the usual one only in how many peaks it examines,
-        # so it shares the prepared reference.
+        # A step first asks the registration (with R, and with R' when the best hypothesis of
+        # R lies mostly on matched walls: see "Two references") for its usual hypotheses,
+        # plus those of the previous step (a part seen there, beside the larger one that won,
+        # is often registered better than from what is left alone). If none is significant,
+        # or the best (or the best of R') explains less than half of what is left, it asks
+        # once more with a wider search (``thorough``: more peaks, same prepared references),
+        # and keeps the better answer.
+        claimed_distance = None
+        if found:
+            claimed_distance = manhattan_distance_map(
+                index.reference.occupied & ~reference_occupied
+            )
+        rest = None
         pool: list[Candidate] = list(carried)
+        pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
-        prepared = registrar.prepare_reference(ref_states)
         for attempt in (registrar, thorough):
             if attempt is None:
                 continue
             limit = max_candidates if attempt is registrar else 2 * max_candidates
-            fresh = attempt.candidates(prepared, moving_states, limit)
+            fresh = attempt.candidates(whole, moving_states, limit)
             pool += fresh
+            carried, carried_rest = fresh, []
             best = best_hypothesis(pool, points[left], index, threshold, refined)
-            carried = fresh
-            if best is not None and np.count_nonzero(best[1]) >= max(needed, _THOROUGH_BELOW * n):
+            enough = max(needed, _THOROUGH_BELOW * n)
+            rest_ok = True
+            if (
+                best is not None
+                and claimed_distance is not None
+                and (
+                    rest is not None
+                    or _mostly_claimed(best, points[left], claimed_distance, threshold)
+                )
+            ):
+                if rest is None:
+                    rest = registrar.prepare_reference(
+                        reference_states(index.reference, reference_occupied, uses_free)
+                    )
+                fresh_rest = attempt.candidates(rest, moving_states, limit)
+                pool_rest += fresh_rest
+                carried += fresh_rest
+                carried_rest = fresh_rest
+                best_rest = best_hypothesis(pool_rest, points[left], index, threshold, refined)
+                rest_ok = bool(best_rest is not None and np.count_nonzero(best_rest[1]) >= enough)
+                best = _prefer_unexplained(best, best_rest, significance * spread)
+            if best is not None and np.count_nonzero(best[1]) >= enough and rest_ok:
                 break
         if best is None or np.count_nonzero(best[1]) < needed:
             break
@@ -408,3 +458,49 @@ def _recurse(
         if not reference_occupied.any():
             break
     return found
+
+
+def _prefer_unexplained(
+    best: tuple[RigidTransform, NDArray[np.bool_]],
+    best_rest: tuple[RigidTransform, NDArray[np.bool_]] | None,
+    margin: float,
+) -> tuple[RigidTransform, NDArray[np.bool_]]:
+    """The hypothesis a step keeps: the best of all, or the best registered with R'.
+
+    Parameters
+    ----------
+    best : (RigidTransform, ndarray of bool)
+        The best hypothesis among those registered with the whole reference R and with R'
+        (the reference less the walls earlier partitions matched), with the cells of the
+        remainder that agree under it.
+    best_rest : (RigidTransform, ndarray of bool) or None
+        The best among those registered with R' only.
+    margin : float
+        Agreeing cells that chance alone could account for (``z sigma`` of the stopping rule).
+
+    Returns
+    -------
+    (RigidTransform, ndarray of bool)
+        ``best_rest`` if it explains at least as many cells as ``best`` less ``margin`` (the
+        two explain the remainder equally well, and ``best_rest`` puts it where no partition
+        is yet), else ``best``.
+    """
+    if best_rest is None:
+        return best
+    if np.count_nonzero(best_rest[1]) >= np.count_nonzero(best[1]) - margin:
+        return best_rest
+    return best
+
+
+def _mostly_claimed(
+    best: tuple[RigidTransform, NDArray[np.bool_]],
+    points: NDArray[np.float64],
+    claimed_distance: NDArray[np.float32],
+    threshold: float,
+) -> bool:
+    """Whether most agreeing cells of ``best`` land on walls earlier partitions matched."""
+    transform, agree = best
+    if not agree.any():
+        return False
+    on_claimed = lookup_distance(claimed_distance, transform.apply(points[agree])) <= threshold
+    return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))
