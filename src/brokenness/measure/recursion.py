@@ -107,8 +107,8 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 _IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3, "translation_peaks": 3}
 #: ... and a wider search, tried when a step finds nothing significant with the above.
 _IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05, "translation_peaks": 3}
-#: The wider search is also tried when the best hypothesis explains less than this share of
-#: the cells left.
+#: The wider search is also tried, for R and R' each on its own, when its best hypothesis
+#: explains less than this share of the cells left.
 _THOROUGH_BELOW = 0.5
 
 
@@ -394,8 +394,8 @@ def _recurse(
         # plus those of the previous step (a part seen there, beside the larger one that won,
         # is often registered better than from what is left alone). If none is significant,
         # or the best (or the best of R') explains less than half of what is left, it asks
-        # once more with a wider search (``thorough``: more peaks, same prepared references),
-        # and keeps the better answer.
+        # once more with a wider search (``thorough``: more peaks, same prepared references)
+        # for the reference(s) whose best fell short, and keeps the better answer.
         claimed_distance = None
         if found:
             claimed_distance = manhattan_distance_map(
@@ -405,37 +405,45 @@ def _recurse(
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
+        enough = max(needed, _THOROUGH_BELOW * n)
+        best_whole = best_rest = None
+        # Each reference gets the wider search only while its own best falls short.
+        widen_whole = widen_rest = True
+        fresh: list[Candidate] = []
+        fresh_rest: list[Candidate] = []
         for attempt in (registrar, thorough):
             if attempt is None:
                 continue
             limit = max_candidates if attempt is registrar else 2 * max_candidates
-            fresh = attempt.candidates(whole, moving_states, limit)
-            pool += fresh
-            carried, carried_rest = fresh, []
-            best = best_hypothesis(pool, points[left], index, threshold, refined)
-            enough = max(needed, _THOROUGH_BELOW * n)
+            if widen_whole:
+                fresh = attempt.candidates(whole, moving_states, limit)
+                pool += fresh
+                best_whole = best_hypothesis(pool, points[left], index, threshold, refined)
+                widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
+            best = best_whole
             rest_ok = True
             if (
-                best is not None
+                best_whole is not None
                 and claimed_distance is not None
                 and (
                     rest is not None
-                    or _mostly_claimed(best, points[left], claimed_distance, threshold)
+                    or _mostly_claimed(best_whole, points[left], claimed_distance, threshold)
                 )
             ):
                 if rest is None:
                     rest = registrar.prepare_reference(
                         reference_states(index.reference, reference_occupied, uses_free)
                     )
-                fresh_rest = attempt.candidates(rest, moving_states, limit)
-                pool_rest += fresh_rest
-                carried += fresh_rest
-                carried_rest = fresh_rest
-                best_rest = best_hypothesis(pool_rest, points[left], index, threshold, refined)
-                rest_ok = bool(best_rest is not None and np.count_nonzero(best_rest[1]) >= enough)
-                best = _prefer_unexplained(best, best_rest, significance * spread)
+                if widen_rest:
+                    fresh_rest = attempt.candidates(rest, moving_states, limit)
+                    pool_rest += fresh_rest
+                    best_rest = best_hypothesis(pool_rest, points[left], index, threshold, refined)
+                    widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)
+                rest_ok = not widen_rest
+                best = _prefer_unexplained(best_whole, best_rest, significance * spread)
             if best is not None and np.count_nonzero(best[1]) >= enough and rest_ok:
                 break
+        carried, carried_rest = fresh + fresh_rest, fresh_rest
         if best is None or np.count_nonzero(best[1]) < needed:
             break
         transform, agree = best
