@@ -6,9 +6,9 @@ simulator's honest count (bumps whose partition is too small or not "off" do not
 
 Degrees 0..2 must be found exactly, with the true transforms. Degrees 3..5 on these regular
 synthetic buildings (rooms of similar sizes, where a piece of one room fits another) are
-harder: a part that the registration does not find whole can come out as an extra, wrongly
-placed partition. For them we bound the error over four seeds (mean at most one, never more
-than two); the exact-match rates over many seeds are in the README
+harder: a small partition whose walls coincide with the reference's under another
+partition's transform can be lost. For them we require every map of four seeds to be within
+one of its degree; the exact-match rates over many seeds are in the README
 (benchmarks/experiment_tables.py).
 """
 
@@ -58,8 +58,7 @@ def test_higher_degrees_within_bounds(degree):
         assert sim.expected_degree == degree
         found.append(compute_brokenness(sim.map, sim.reference).degree)
     errors = np.abs(np.array(found) - degree)
-    assert errors.max() <= 2, found
-    assert errors.mean() <= 1.0, found
+    assert errors.max() <= 1, found
 
 
 @pytest.mark.parametrize(("degree", "seed"), [(2, 1014), (3, 1012), (3, 1019)])
@@ -73,3 +72,24 @@ def test_partitions_that_overlap_in_the_reference_are_found_whole(degree, seed):
     result = compute_brokenness(sim.map, sim.reference)
     assert result.degree == degree
     assert max(_transform_errors(result, sim)) < 1.5
+
+
+@pytest.mark.parametrize(("degree", "seed"), [(4, 1002), (5, 1007)])
+def test_a_partition_that_lost_cells_to_others_is_found_with_its_neighbourhood(
+    degree, seed, monkeypatch
+):
+    """A small partition of these maps (6 % of the cells) loses half of its cells to
+    earlier partitions, under whose transforms its walls lie on reference walls; what is left
+    is too ambiguous to register alone and the recursion stopped one partition short. With
+    the map around the cells left, the last registration places it, with its true
+    transform."""
+    import brokenness.measure.recursion as recursion
+
+    sim = simulate_broken_map(seed=seed, degree=degree)
+    assert sim.expected_degree == degree
+    result = compute_brokenness(sim.map, sim.reference)
+    assert result.degree == degree
+    # every partition is a true one, placed to within the masking threshold (2 cells)
+    assert max(_transform_errors(result, sim)) < 2.0
+    monkeypatch.setattr(recursion, "NEIGHBOURHOOD_CELLS", 0)  # the cells left alone
+    assert compute_brokenness(sim.map, sim.reference).degree == degree - 1

@@ -58,6 +58,22 @@ R' (``h_R'``) explains about as many cells: fewer by no more than ``z sigma`` (t
 spread of the stopping rule below, with the same ``z``), a difference that coincidence alone
 could make. Then the part goes where nothing else is yet.
 
+Neighbourhood
+-------------
+A small partition can lose many of its cells to earlier ones: where its walls happen to lie
+on walls of the reference under another partition's transform (a corridor shifted along
+itself, a row of equal rooms), the masking gives them away, and what is left of it (its
+cross walls, say) is too little and too ambiguous for the registration to place. So when the
+best hypothesis of a step (with R or with R') is not significant, the step also registers
+the cells left together with the map around them (every occupied cell within
+:data:`NEIGHBOURHOOD_CELLS` of one of them, 0.4 m at 5 cm cells, isolated ones included: a
+wall cut short by the masking is structure) with R: a partition is a contiguous stretch of
+the robot's run, so its lost cells are mostly there. The hypotheses are still scored on the
+cells left only, and the stopping rule is unchanged. On simulated maps of degrees 2-5 this
+gave the exact degree in 4 more of 80 maps (3 more of 80 maps not used to choose it), the
+exact degree with only true partitions in 7 more (3 more), and 5 (4) fewer wrongly placed
+partitions. iFMI only: a random-walk registration costs seconds.
+
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
 paper's per-step transforms), without resampling T again and again.
@@ -96,7 +112,7 @@ from .partitions import (
     with_fringe,
 )
 from .result import BrokennessResult, Partition
-from .views import reference_states, remainder_states, walls_connected
+from .views import neighbourhood, reference_states, remainder_states, walls_connected
 
 __all__ = ["compute_brokenness"]
 
@@ -110,6 +126,9 @@ _IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05, "translation_
 #: The wider search is also tried, for R and R' each on its own, when its best hypothesis
 #: explains less than this share of the cells left.
 _THOROUGH_BELOW = 0.5
+#: Radius (cells) of the map around the cells left that a registration includes when the
+#: cells left alone give no significant hypothesis (see "Neighbourhood" in the docstring).
+NEIGHBOURHOOD_CELLS = 8
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -371,6 +390,9 @@ def _recurse(
     whole = registrar.prepare_reference(
         reference_states(index.reference, reference_occupied, uses_free)
     )
+    # R once more, prepared on demand for the registrations of neighbourhoods (a prepared
+    # reference remembers the last map registered with it: keep the remainders' apart)
+    lazy_reference = _LazyReference(thorough, index.reference.states)
     found: list[Found] = []
     carried: list[Candidate] = []  # the previous step's hypotheses, from R and R'
     carried_rest: list[Candidate] = []  # ... from R' only
@@ -406,6 +428,17 @@ def _recurse(
         pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
         enough = max(needed, _THOROUGH_BELOW * n)
+        context = _Neighbourhood(
+            thorough,
+            lazy_reference,
+            working,
+            rows,
+            cols,
+            remaining,
+            uses_free,
+            2 * max_candidates,
+        )
+
         best_whole = best_rest = None
         # Each reference gets the wider search only while its own best falls short.
         widen_whole = widen_rest = True
@@ -418,7 +451,7 @@ def _recurse(
             if widen_whole:
                 fresh = attempt.candidates(whole, moving_states, limit)
                 pool += fresh
-                best_whole = best_hypothesis(pool, points[left], index, threshold, refined)
+                best_whole = _choose(pool, points[left], index, threshold, needed, refined, context)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
             best = best_whole
             rest_ok = True
@@ -437,7 +470,9 @@ def _recurse(
                 if widen_rest:
                     fresh_rest = attempt.candidates(rest, moving_states, limit)
                     pool_rest += fresh_rest
-                    best_rest = best_hypothesis(pool_rest, points[left], index, threshold, refined)
+                    best_rest = _choose(
+                        pool_rest, points[left], index, threshold, needed, refined, context
+                    )
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)
                 rest_ok = not widen_rest
                 best = _prefer_unexplained(best_whole, best_rest, significance * spread)
@@ -466,6 +501,88 @@ def _recurse(
         if not reference_occupied.any():
             break
     return found
+
+
+class _LazyReference:
+    """A reference prepared for ``registrar`` the first time it is asked for."""
+
+    def __init__(self, registrar: Registrar | None, states: NDArray[np.int8]) -> None:
+        self.registrar = registrar
+        self.states = states
+        self._prepared: Any = None
+
+    def get(self) -> Any:
+        if self._prepared is None and self.registrar is not None:
+            self._prepared = self.registrar.prepare_reference(self.states)
+        return self._prepared
+
+
+class _Neighbourhood:
+    """Hypotheses for a step's remainder registered with the map around it (on demand, once).
+
+    See "Neighbourhood" in the module docstring. Without a registrar (the random walk), or
+    when the neighbourhood adds no cell, there are none.
+    """
+
+    def __init__(
+        self,
+        registrar: Registrar | None,
+        reference: _LazyReference,
+        working: OccupancyMap,
+        rows: NDArray[np.intp],
+        cols: NDArray[np.intp],
+        remaining: NDArray[np.bool_],
+        uses_free: bool,
+        limit: int,
+    ) -> None:
+        self.registrar = registrar
+        self.limit = limit
+        self.reference = reference
+        self.working = working
+        self.rows, self.cols = rows, cols
+        self.remaining = remaining.copy()
+        self.uses_free = uses_free
+        self._found: list[Candidate] | None = None
+
+    def hypotheses(self) -> list[Candidate]:
+        if self._found is None:
+            self._found = []
+            near = neighbourhood(
+                self.working.shape, self.rows, self.cols, self.remaining, NEIGHBOURHOOD_CELLS
+            )
+            if self.registrar is not None and np.count_nonzero(near) > np.count_nonzero(
+                self.remaining
+            ):
+                states = remainder_states(
+                    self.working, self.rows, self.cols, near, self.uses_free, drop_isolated=False
+                )
+                self._found = self.registrar.candidates(self.reference.get(), states, self.limit)
+        return self._found
+
+
+def _choose(
+    candidates: list[Candidate],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    needed: float,
+    refined: dict[Any, Any],
+    context: _Neighbourhood,
+) -> tuple[RigidTransform, NDArray[np.bool_]] | None:
+    """The best hypothesis of ``candidates`` for the remainder ``points``; if it is not
+    significant (fewer than ``needed`` agreeing cells), with the neighbourhood's ones too."""
+    chosen = best_hypothesis(candidates, points, index, threshold, refined)
+    if chosen is not None and np.count_nonzero(chosen[1]) >= needed:
+        return chosen
+    extra = context.hypotheses()
+    if not extra:
+        return chosen
+    wider = best_hypothesis(candidates + extra, points, index, threshold, refined)
+    if wider is not None and (
+        chosen is None or np.count_nonzero(wider[1]) > np.count_nonzero(chosen[1])
+    ):
+        return wider
+    return chosen
 
 
 def _prefer_unexplained(
