@@ -390,9 +390,6 @@ def _recurse(
     whole = registrar.prepare_reference(
         reference_states(index.reference, reference_occupied, uses_free)
     )
-    # R once more, prepared on demand for the registrations of neighbourhoods (a prepared
-    # reference remembers the last map registered with it: keep the remainders' apart)
-    lazy_reference = _LazyReference(thorough, index.reference.states)
     found: list[Found] = []
     carried: list[Candidate] = []  # the previous step's hypotheses, from R and R'
     carried_rest: list[Candidate] = []  # ... from R' only
@@ -430,7 +427,7 @@ def _recurse(
         enough = max(needed, _THOROUGH_BELOW * n)
         context = _Neighbourhood(
             thorough,
-            lazy_reference,
+            whole,
             working,
             rows,
             cols,
@@ -503,20 +500,6 @@ def _recurse(
     return found
 
 
-class _LazyReference:
-    """A reference prepared for ``registrar`` the first time it is asked for."""
-
-    def __init__(self, registrar: Registrar | None, states: NDArray[np.int8]) -> None:
-        self.registrar = registrar
-        self.states = states
-        self._prepared: Any = None
-
-    def get(self) -> Any:
-        if self._prepared is None and self.registrar is not None:
-            self._prepared = self.registrar.prepare_reference(self.states)
-        return self._prepared
-
-
 class _Neighbourhood:
     """Hypotheses for a step's remainder registered with the map around it (on demand, once).
 
@@ -527,7 +510,7 @@ class _Neighbourhood:
     def __init__(
         self,
         registrar: Registrar | None,
-        reference: _LazyReference,
+        reference: Any,
         working: OccupancyMap,
         rows: NDArray[np.intp],
         cols: NDArray[np.intp],
@@ -556,7 +539,7 @@ class _Neighbourhood:
                 states = remainder_states(
                     self.working, self.rows, self.cols, near, self.uses_free, drop_isolated=False
                 )
-                self._found = self.registrar.candidates(self.reference.get(), states, self.limit)
+                self._found = self.registrar.candidates(self.reference, states, self.limit)
         return self._found
 
 

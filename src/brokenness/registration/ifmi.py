@@ -72,6 +72,8 @@ __all__ = ["IFMIRegistrar"]
 #: Padded sizes whose reference spectrum a prepared reference keeps (moving maps of
 #: different extents need different paddings; the recursion registers a handful).
 _SPECTRA_CACHED = 8
+#: Moving maps whose analysis a prepared reference remembers.
+_MEMOS = 2
 #: Cells of margin the reference's distance map keeps around its walls' bounding box; more
 #: than any inlier radius of the refinement (which starts at ``2 * factor + 2`` cells).
 _DISTANCE_MARGIN = 64
@@ -96,12 +98,12 @@ class _Prepared:
     levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
     signatures: dict[int, NDArray[np.complex64]] = field(default_factory=dict)
     spectra: dict[tuple[int, int, int], NDArray[np.complex64]] = field(default_factory=dict)
-    memo: _Memo | None = None  # the last moving map (see _Memo)
+    memos: list[_Memo] = field(default_factory=list)  # the last moving maps (see _Memo)
 
 
 @dataclass
 class _Memo:
-    """The last moving map registered against a prepared reference, and what was found.
+    """A moving map registered against a prepared reference, and what was found.
 
     The recursion may ask twice about the same remainder (a usual and a wider search, which
     differ only in how many rotation peaks they examine): the second call reuses the
@@ -420,20 +422,24 @@ class IFMIRegistrar:
         )
 
     def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8]) -> _Memo:
-        """The analysis of ``moving_states`` against ``ref``, remembered for a second call."""
+        """The analysis of ``moving_states`` against ``ref``, remembered for later calls.
+
+        The last :data:`_MEMOS` moving maps are remembered (the recursion alternates between
+        what is left of the map and that together with its neighbourhood).
+        """
         states = np.asarray(moving_states)
         key = self._memo_key()
-        memo = ref.memo
-        if (
-            memo is not None
-            and memo.key == key
-            and memo.states.shape == states.shape
-            and np.array_equal(memo.states, states)
-        ):
-            return memo
+        for memo in ref.memos:
+            if (
+                memo.key == key
+                and memo.states.shape == states.shape
+                and np.array_equal(memo.states, states)
+            ):
+                return memo
         mov = self._moving(states, ref)
         memo = _Memo(key, states.copy(), mov, self._angle_correlation(ref, mov))
-        ref.memo = memo
+        ref.memos.append(memo)
+        del ref.memos[:-_MEMOS]
         return memo
 
     def candidates(
