@@ -83,7 +83,7 @@ def test_a_partition_that_lost_cells_to_others_is_found_with_its_neighbourhood(
     is too ambiguous to register alone and the recursion stopped one partition short. With
     the map around the cells left, the last registration places it, with its true
     transform."""
-    import brokenness.measure.recursion as recursion
+    import brokenness.measure.choice as choice
 
     sim = simulate_broken_map(seed=seed, degree=degree)
     assert sim.expected_degree == degree
@@ -91,5 +91,5 @@ def test_a_partition_that_lost_cells_to_others_is_found_with_its_neighbourhood(
     assert result.degree == degree
     # every partition is a true one, placed to within the masking threshold (2 cells)
     assert max(_transform_errors(result, sim)) < 2.0
-    monkeypatch.setattr(recursion, "NEIGHBOURHOOD_CELLS", 0)  # the cells left alone
+    monkeypatch.setattr(choice, "NEIGHBOURHOOD_CELLS", 0)  # the cells left alone
     assert compute_brokenness(sim.map, sim.reference).degree == degree - 1

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from brokenness.measure.recursion import _prefer_unexplained
+from brokenness.measure.choice import prefer_unexplained
 from brokenness.transform import RigidTransform
 
 
@@ -16,24 +16,24 @@ def _hyp(rotation: float, agreeing: int, n: int = 1000):
 
 def test_the_hypothesis_of_the_reduced_reference_wins_a_near_tie():
     best, rest = _hyp(0.1, 500), _hyp(0.2, 460)
-    assert _prefer_unexplained(best, rest, margin=50.0) is rest
-    assert _prefer_unexplained(best, _hyp(0.2, 450), margin=50.0)[0].rotation == 0.2
+    assert prefer_unexplained(best, rest, margin=50.0) is rest
+    assert prefer_unexplained(best, _hyp(0.2, 450), margin=50.0)[0].rotation == 0.2
 
 
 def test_the_better_hypothesis_wins_beyond_the_margin():
     best, rest = _hyp(0.1, 500), _hyp(0.2, 449)
-    assert _prefer_unexplained(best, rest, margin=50.0) is best
-    assert _prefer_unexplained(best, rest, margin=0.0) is best
+    assert prefer_unexplained(best, rest, margin=50.0) is best
+    assert prefer_unexplained(best, rest, margin=0.0) is best
 
 
 def test_without_a_reduced_hypothesis_the_best_is_kept():
     best = _hyp(0.1, 500)
-    assert _prefer_unexplained(best, None, margin=50.0) is best
+    assert prefer_unexplained(best, None, margin=50.0) is best
 
 
 def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
     from brokenness.masking import manhattan_distance_map
-    from brokenness.measure.recursion import _mostly_claimed
+    from brokenness.measure.choice import mostly_claimed
 
     claimed = np.zeros((20, 20), dtype=bool)
     claimed[5, :] = True  # a wall an earlier partition matched
@@ -41,10 +41,10 @@ def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
     points = np.array([[x, 5.0] for x in range(6)] + [[x, 15.0] for x in range(4)])
     agree = np.ones(len(points), dtype=bool)
     identity = RigidTransform(0.0, 0.0, 0.0)
-    assert _mostly_claimed((identity, agree), points, distance, 2.0)  # 6 of 10 on it
+    assert mostly_claimed((identity, agree), points, distance, 2.0)  # 6 of 10 on it
     shifted = RigidTransform(0.0, 0.0, 10.0)  # none on it now
-    assert not _mostly_claimed((shifted, agree), points, distance, 2.0)
-    assert not _mostly_claimed((identity, np.zeros(len(points), bool)), points, distance, 2.0)
+    assert not mostly_claimed((shifted, agree), points, distance, 2.0)
+    assert not mostly_claimed((identity, np.zeros(len(points), bool)), points, distance, 2.0)
 
 
 def test_neighbourhood_adds_the_cells_near_the_selected_ones():

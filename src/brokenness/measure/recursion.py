@@ -66,13 +66,13 @@ itself, a row of equal rooms), the masking gives them away, and what is left of 
 cross walls, say) is too little and too ambiguous for the registration to place. So when the
 best hypothesis of a step (with R or with R') is not significant, the step also registers
 the cells left together with the map around them (every occupied cell within
-:data:`NEIGHBOURHOOD_CELLS` of one of them, 0.4 m at 5 cm cells, isolated ones included: a
-wall cut short by the masking is structure) with R: a partition is a contiguous stretch of
-the robot's run, so its lost cells are mostly there. The hypotheses are still scored on the
-cells left only, and the stopping rule is unchanged. On simulated maps of degrees 2-5 this
-gave the exact degree in 4 more of 80 maps (3 more of 80 maps not used to choose it), the
-exact degree with only true partitions in 7 more (3 more), and 5 (4) fewer wrongly placed
-partitions. iFMI only: a random-walk registration costs seconds.
+:data:`~brokenness.measure.choice.NEIGHBOURHOOD_CELLS` of one of them, 0.4 m at 5 cm cells,
+isolated ones included: a wall cut short by the masking is structure) with R: a partition is
+a contiguous stretch of the robot's run, so its lost cells are mostly there. The hypotheses
+are still scored on the cells left only, and the stopping rule is unchanged. On simulated
+maps of degrees 2-5 this gave the exact degree in 4 more of 80 maps (3 more of 80 maps not
+used to choose it), the exact degree with only true partitions in 7 more (3 more), and 5 (4)
+fewer wrongly placed partitions. iFMI only: a random-walk registration costs seconds.
 
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
@@ -98,11 +98,10 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
-from ..masking.distance import lookup_distance
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
-from .hypotheses import best_hypothesis
+from .choice import Neighbourhood, choose, mostly_claimed, prefer_unexplained
 from .partitions import (
     Found,
     assemble,
@@ -112,7 +111,7 @@ from .partitions import (
     with_fringe,
 )
 from .result import BrokennessResult, Partition
-from .views import neighbourhood, reference_states, remainder_states, walls_connected
+from .views import reference_states, remainder_states, walls_connected
 
 __all__ = ["compute_brokenness"]
 
@@ -126,9 +125,6 @@ _IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05, "translation_
 #: The wider search is also tried, for R and R' each on its own, when its best hypothesis
 #: explains less than this share of the cells left.
 _THOROUGH_BELOW = 0.5
-#: Radius (cells) of the map around the cells left that a registration includes when the
-#: cells left alone give no significant hypothesis (see "Neighbourhood" in the docstring).
-NEIGHBOURHOOD_CELLS = 8
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -425,7 +421,7 @@ def _recurse(
         pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
         enough = max(needed, _THOROUGH_BELOW * n)
-        context = _Neighbourhood(
+        context = Neighbourhood(
             thorough,
             whole,
             working,
@@ -448,7 +444,7 @@ def _recurse(
             if widen_whole:
                 fresh = attempt.candidates(whole, moving_states, limit)
                 pool += fresh
-                best_whole = _choose(pool, points[left], index, threshold, needed, refined, context)
+                best_whole = choose(pool, points[left], index, threshold, needed, refined, context)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
             best = best_whole
             rest_ok = True
@@ -457,7 +453,7 @@ def _recurse(
                 and claimed_distance is not None
                 and (
                     rest is not None
-                    or _mostly_claimed(best_whole, points[left], claimed_distance, threshold)
+                    or mostly_claimed(best_whole, points[left], claimed_distance, threshold)
                 )
             ):
                 if rest is None:
@@ -467,12 +463,12 @@ def _recurse(
                 if widen_rest:
                     fresh_rest = attempt.candidates(rest, moving_states, limit)
                     pool_rest += fresh_rest
-                    best_rest = _choose(
+                    best_rest = choose(
                         pool_rest, points[left], index, threshold, needed, refined, context
                     )
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)
                 rest_ok = not widen_rest
-                best = _prefer_unexplained(best_whole, best_rest, significance * spread)
+                best = prefer_unexplained(best_whole, best_rest, significance * spread)
             if best is not None and np.count_nonzero(best[1]) >= enough and rest_ok:
                 break
         carried, carried_rest = fresh + fresh_rest, fresh_rest
@@ -498,117 +494,3 @@ def _recurse(
         if not reference_occupied.any():
             break
     return found
-
-
-class _Neighbourhood:
-    """Hypotheses for a step's remainder registered with the map around it (on demand, once).
-
-    See "Neighbourhood" in the module docstring. Without a registrar (the random walk), or
-    when the neighbourhood adds no cell, there are none.
-    """
-
-    def __init__(
-        self,
-        registrar: Registrar | None,
-        reference: Any,
-        working: OccupancyMap,
-        rows: NDArray[np.intp],
-        cols: NDArray[np.intp],
-        remaining: NDArray[np.bool_],
-        uses_free: bool,
-        limit: int,
-    ) -> None:
-        self.registrar = registrar
-        self.limit = limit
-        self.reference = reference
-        self.working = working
-        self.rows, self.cols = rows, cols
-        self.remaining = remaining.copy()
-        self.uses_free = uses_free
-        self._found: list[Candidate] | None = None
-
-    def hypotheses(self) -> list[Candidate]:
-        if self._found is None:
-            self._found = []
-            near = neighbourhood(
-                self.working.shape, self.rows, self.cols, self.remaining, NEIGHBOURHOOD_CELLS
-            )
-            if self.registrar is not None and np.count_nonzero(near) > np.count_nonzero(
-                self.remaining
-            ):
-                states = remainder_states(
-                    self.working, self.rows, self.cols, near, self.uses_free, drop_isolated=False
-                )
-                self._found = self.registrar.candidates(self.reference, states, self.limit)
-        return self._found
-
-
-def _choose(
-    candidates: list[Candidate],
-    points: NDArray[np.float64],
-    index: ReferenceIndex,
-    threshold: float,
-    needed: float,
-    refined: dict[Any, Any],
-    context: _Neighbourhood,
-) -> tuple[RigidTransform, NDArray[np.bool_]] | None:
-    """The best hypothesis of ``candidates`` for the remainder ``points``; if it is not
-    significant (fewer than ``needed`` agreeing cells), with the neighbourhood's ones too."""
-    chosen = best_hypothesis(candidates, points, index, threshold, refined)
-    if chosen is not None and np.count_nonzero(chosen[1]) >= needed:
-        return chosen
-    extra = context.hypotheses()
-    if not extra:
-        return chosen
-    wider = best_hypothesis(candidates + extra, points, index, threshold, refined)
-    if wider is not None and (
-        chosen is None or np.count_nonzero(wider[1]) > np.count_nonzero(chosen[1])
-    ):
-        return wider
-    return chosen
-
-
-def _prefer_unexplained(
-    best: tuple[RigidTransform, NDArray[np.bool_]],
-    best_rest: tuple[RigidTransform, NDArray[np.bool_]] | None,
-    margin: float,
-) -> tuple[RigidTransform, NDArray[np.bool_]]:
-    """The hypothesis a step keeps: the best of all, or the best registered with R'.
-
-    Parameters
-    ----------
-    best : (RigidTransform, ndarray of bool)
-        The best hypothesis among those registered with the whole reference R and with R'
-        (the reference less the walls earlier partitions matched), with the cells of the
-        remainder that agree under it.
-    best_rest : (RigidTransform, ndarray of bool) or None
-        The best among those registered with R' only.
-    margin : float
-        Agreeing cells that chance alone could account for (``z sigma`` of the stopping rule).
-
-    Returns
-    -------
-    (RigidTransform, ndarray of bool)
-        ``best_rest`` if it explains at least as many cells as ``best`` less ``margin`` (the
-        two explain the remainder equally well, and ``best_rest`` puts it where no partition
-        is yet), else ``best``.
-    """
-    if best_rest is None:
-        return best
-    if np.count_nonzero(best_rest[1]) >= np.count_nonzero(best[1]) - margin:
-        return best_rest
-    return best
-
-
-def _mostly_claimed(
-    best: tuple[RigidTransform, NDArray[np.bool_]],
-    points: NDArray[np.float64],
-    claimed_distance: NDArray[np.float32],
-    threshold: float,
-) -> bool:
-    """Whether most agreeing cells of ``best`` land on walls earlier partitions matched."""
-    transform, agree = best
-    if not agree.any():
-        return False
-    on_claimed = lookup_distance(claimed_distance, transform.apply(points[agree])) <= threshold
-    return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))
