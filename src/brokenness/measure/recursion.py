@@ -421,6 +421,8 @@ def _recurse(
         pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
         enough = max(needed, _THOROUGH_BELOW * n)
+        # ``choose`` adds the hypotheses of the remainder's neighbourhood in the map when the
+        # best of a pool is not significant (see "Neighbourhood"); registered once, if asked.
         context = Neighbourhood(
             thorough,
             whole,
@@ -431,7 +433,6 @@ def _recurse(
             uses_free,
             2 * max_candidates,
         )
-
         best_whole = best_rest = None
         # Each reference gets the wider search only while its own best falls short.
         widen_whole = widen_rest = True
