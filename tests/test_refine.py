@@ -7,13 +7,12 @@ import math
 import numpy as np
 
 from brokenness.grid import OccupancyMap
-from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.masking import ReferenceIndex, cell_points, sample_at
 from brokenness.measure.refine import (
     _turn_about,
     fit_rigid,
     polish_transform,
     refine_transform,
-    sample_nearby,
     soft_agreement,
     soft_agreements,
     sweep_rotation,
@@ -55,13 +54,13 @@ def test_batched_scores_equal_one_by_one_scores():
     assert int(np.argmax(batch)) == 2  # the identity aligns the reference with itself
 
 
-def test_sample_nearby_handles_long_and_empty_inputs():
+def test_sample_at_handles_long_and_empty_inputs():
     field = np.arange(100, dtype=np.float32).reshape(10, 10)
     pts = np.tile([[3.0, 2.0]], (70_000, 1))  # more than one remap row can hold
     pts[-1] = [50.0, 50.0]  # off the grid
-    out = sample_nearby(field, pts, -1.0)
+    out = sample_at(field, pts, -1.0)
     assert out.shape == (70_000,) and np.all(out[:-1] == 23.0) and out[-1] == -1.0
-    assert sample_nearby(field, np.zeros((0, 2)), 0.0).shape == (0,)
+    assert sample_at(field, np.zeros((0, 2)), 0.0).shape == (0,)
 
 
 def test_sweep_finds_the_turn_about_the_agreeing_cells():

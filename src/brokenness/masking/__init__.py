@@ -7,13 +7,14 @@
 """
 
 from .agreement import ReferenceIndex, cell_points, unmatched_reference
-from .distance import lookup_distance, manhattan_distance_map
+from .distance import lookup_distance, manhattan_distance_map, sample_at
 from .similarity import picture_distance
 
 __all__ = [
     "ReferenceIndex",
     "cell_points",
     "lookup_distance",
+    "sample_at",
     "manhattan_distance_map",
     "picture_distance",
     "unmatched_reference",

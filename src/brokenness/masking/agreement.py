@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import MapError
 from ..grid import OccupancyMap
-from .distance import lookup_distance, manhattan_distance_map
+from .distance import lookup_distance, manhattan_distance_map, sample_at
 
 __all__ = ["ReferenceIndex", "cell_points", "manhattan_ball", "unmatched_reference"]
 
@@ -105,29 +105,14 @@ class ReferenceIndex:
             Points farther than this from every occupied cell get ``inf`` coordinates.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        n = p.shape[0]
         if self.reference.states.size > _LOOKUP_TABLE_CELLS:
             out = np.full(p.shape, np.inf)
             dist, idx = self.tree.query(p, k=1, distance_upper_bound=max_distance)
             found = np.isfinite(dist)
             out[found] = self.occupied_points[idx[found]]
             return out
-        if n == 0:
-            return np.zeros((0, 2))
-        # nearest-cell lookup in one remap (INTER_NEAREST rounds half to even, like np.rint;
-        # cells off the grid read -1: no neighbour)
-        label = np.empty(n, dtype=np.float32)
-        query = p.astype(np.float32)
-        for start in range(0, n, 32_000):  # OpenCV wants map sides under 32767
-            stop = min(start + 32_000, n)
-            label[start:stop] = cv2.remap(  # type: ignore[call-overload]  # map2=None
-                self.nearest_occupied,
-                query[start:stop].reshape(1, -1, 2),
-                None,
-                cv2.INTER_NEAREST,
-                borderMode=cv2.BORDER_CONSTANT,
-                borderValue=-1.0,
-            ).reshape(-1)
+        # nearest-cell lookup in one remap (cells off the grid read -1: no neighbour)
+        label = sample_at(self.nearest_occupied, p, -1.0, nearest=True)
         idx = label.astype(np.intp)
         out = self.occupied_points.take(np.maximum(idx, 0), axis=0)
         d = out - p

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["lookup_distance", "manhattan_distance_map"]
+__all__ = ["lookup_distance", "manhattan_distance_map", "sample_at"]
 
 
 def manhattan_distance_map(mask: ArrayLike) -> NDArray[np.float32]:
@@ -58,3 +58,56 @@ def lookup_distance(distance_map: NDArray[np.float32], points: ArrayLike) -> NDA
     out = np.full(p.shape[0], np.inf, dtype=np.float32)
     out[inside] = distance_map[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
     return out
+
+
+def sample_at(
+    field: NDArray[np.float32],
+    points: ArrayLike,
+    outside: float,
+    *,
+    nearest: bool = False,
+) -> NDArray[np.float32]:
+    """Samples of a float32 grid at (sub-cell) points, ``outside`` off the grid.
+
+    One ``cv2.remap`` over the points laid out as a two-channel map: as given when that fits
+    (OpenCV wants sides under 32767), in rows of 1024 points otherwise.
+
+    Parameters
+    ----------
+    field : ndarray of float32, 2D
+        A distance map, or any per-cell float32 table.
+    points : array_like, shape (..., 2)
+        ``(x, y) = (column, row)`` coordinates.
+    outside : float
+        The value of points off the grid.
+    nearest : bool
+        The value of the nearest cell (rounded half to even, like :func:`numpy.rint`)
+        instead of the bilinear interpolation of the four around.
+
+    Returns
+    -------
+    ndarray of float32
+        The shape of ``points`` without its last axis.
+    """
+    grid = np.asarray(points, dtype=np.float32)
+    shape = grid.shape[:-1]
+    if grid.size == 0:
+        return np.zeros(shape, dtype=np.float32)
+    if grid.ndim == 2:
+        grid = grid.reshape(1, -1, 2)
+    if grid.ndim != 3 or max(grid.shape[:2]) >= 32_000:
+        flat = grid.reshape(-1, 2)
+        n, width = flat.shape[0], 1024
+        grid = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
+        grid[:n] = flat
+        grid = grid.reshape(-1, width, 2)
+    out = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
+        field,
+        grid,
+        None,
+        cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=float(outside),
+    )
+    count = int(np.prod(shape))
+    return np.asarray(out, dtype=np.float32).reshape(-1)[:count].reshape(shape)

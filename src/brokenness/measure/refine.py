@@ -15,17 +15,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from ..masking.distance import sample_at
 from ..transform import RigidTransform
 
 __all__ = [
     "fit_rigid",
     "polish_transform",
     "refine_transform",
-    "sample_nearby",
     "soft_agreement",
     "soft_agreements",
     "sweep_rotation",
@@ -166,7 +165,7 @@ def soft_agreement(
     ``d`` is the reference's Manhattan distance map sampled bilinearly at the moved points
     (far away outside the grid), so that sub-cell moves change the score.
     """
-    d = sample_nearby(distance_map, moved, threshold + 1.0)
+    d = sample_at(distance_map, moved, threshold + 1.0)
     return float(np.maximum(threshold + 1.0 - d, 0.0).sum(dtype=np.float64))
 
 
@@ -181,41 +180,8 @@ def soft_agreements(
     moved = np.empty((len(transforms), n, 2), dtype=np.float32)
     for i, t in enumerate(transforms):
         moved[i] = t.apply(points)
-    d = sample_nearby(distance_map, moved, threshold + 1.0).reshape(len(transforms), n)
+    d = sample_at(distance_map, moved, threshold + 1.0).reshape(len(transforms), n)
     return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
-
-
-def sample_nearby(
-    field: NDArray[np.float32], points: NDArray[np.floating], outside: float
-) -> NDArray[np.float32]:
-    """Bilinear samples of ``field`` at ``points`` (..., 2) = (x, y); ``outside`` off the grid.
-
-    One ``cv2.remap`` over the points laid out as a two-channel map: as given when that fits
-    (OpenCV wants sides under 32767), in rows of 1024 points otherwise. The result has the
-    shape of ``points`` without its last axis.
-    """
-    shape = points.shape[:-1]
-    if points.size == 0:
-        return np.zeros(shape, dtype=np.float32)
-    grid = np.asarray(points, dtype=np.float32)
-    if grid.ndim == 2:
-        grid = grid.reshape(1, -1, 2)
-    if grid.ndim != 3 or max(grid.shape[:2]) >= 32_000:
-        flat = grid.reshape(-1, 2)
-        n, width = flat.shape[0], 1024
-        grid = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
-        grid[:n] = flat
-        grid = grid.reshape(-1, width, 2)
-    out = cv2.remap(  # type: ignore[call-overload]  # map2=None: map1 has both
-        field,
-        grid,
-        None,
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=float(outside),
-    )
-    count = int(np.prod(shape))
-    return np.asarray(out, dtype=np.float32).reshape(-1)[:count].reshape(shape)
 
 
 def polish_transform(

@@ -18,9 +18,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["distance_field", "edges", "inlier_count", "refine_rigid", "sample"]
+from ..masking.distance import sample_at
 
-_BLOCK = 1024  # cv2.remap maps are laid out as rows of this many points
+__all__ = ["distance_field", "edges", "inlier_count", "refine_rigid"]
 
 
 def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -43,25 +43,6 @@ def distance_field(cells: NDArray[np.bool_]) -> NDArray[np.float32]:
     return np.asarray(out, dtype=np.float32)
 
 
-def sample(
-    field: NDArray[np.float32], xy: NDArray[np.float64], outside: float
-) -> NDArray[np.float32]:
-    """Bilinear samples of ``field`` at points ``xy`` (N, 2) = (col, row); ``outside`` off-map."""
-    n = xy.shape[0]
-    rows = -(-n // _BLOCK)
-    maps = np.zeros((2, rows * _BLOCK), dtype=np.float32)
-    maps[:, :n] = xy.T
-    out = cv2.remap(
-        field,
-        maps[0].reshape(rows, _BLOCK),
-        maps[1].reshape(rows, _BLOCK),
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=outside,
-    )
-    return np.asarray(out, dtype=np.float32).reshape(-1)[:n]
-
-
 def inlier_count(
     field: NDArray[np.float32],
     points: NDArray[np.float64],
@@ -70,7 +51,7 @@ def inlier_count(
 ) -> int:
     """Number of ``points`` that ``matrix`` (3x3) puts within ``radius`` of an occupied cell."""
     q = points @ matrix[:2, :2].T + matrix[:2, 2]
-    return int(np.count_nonzero(sample(field, q, radius + 1e3) <= radius))
+    return int(np.count_nonzero(sample_at(field, q, radius + 1e3) <= radius))
 
 
 def refine_rigid(
@@ -117,32 +98,16 @@ def refine_rigid(
         for k in range(iterations)
     ]
     far = float(start_radius) + 1e3
-    n = points.shape[0]
-    rows = -(-n // _BLOCK)
-    maps = np.zeros((2, 5, rows * _BLOCK), dtype=np.float32)
-    map_x = maps[0].reshape(-1, _BLOCK)
-    map_y = maps[1].reshape(-1, _BLOCK)
+    # the point and its four neighbours (central differences), sampled in one lookup
+    nudge = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], dtype=np.float32)
     # Small-matrix algebra below is done on Python floats: at a few hundred points per call
     # numpy's per-call overhead would dominate (this runs hundreds of times per map).
     for k, radius in enumerate(radii):
         c, s = math.cos(theta), math.sin(theta)
         rx = c * cx - s * cy  # rotated, centred points
         ry = s * cx + c * cy
-        # the point and its four neighbours (central differences) in one remap
-        maps[0, :, :n] = rx + mx
-        maps[1, :, :n] = ry + my
-        maps[0, 1, :n] += 1.0
-        maps[0, 2, :n] -= 1.0
-        maps[1, 3, :n] += 1.0
-        maps[1, 4, :n] -= 1.0
-        vals = cv2.remap(
-            field,
-            map_x,
-            map_y,
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=far,
-        ).reshape(5, -1)[:, :n]
+        q = np.stack([rx + mx, ry + my], axis=-1).astype(np.float32)
+        vals = sample_at(field, q[None, :, :] + nudge[:, None, :], far)
         keep = np.flatnonzero(vals[0] < radius)
         if keep.size < 3:
             break
