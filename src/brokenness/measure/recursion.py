@@ -411,11 +411,7 @@ def _recurse(
         # or the best (or the best of R') explains less than half of what is left, it asks
         # once more with a wider search (``thorough``: more peaks, same prepared references)
         # for the reference(s) whose best fell short, and keeps the better answer.
-        claimed_distance = None
-        if found:
-            claimed_distance = manhattan_distance_map(
-                index.reference.occupied & ~reference_occupied
-            )
+        claimed_distance = None  # distance to the walls earlier partitions matched, if asked
         rest = None
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
@@ -449,14 +445,14 @@ def _recurse(
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
             best = best_whole
             rest_ok = True
-            if (
-                best_whole is not None
-                and claimed_distance is not None
-                and (
-                    rest is not None
-                    or mostly_claimed(best_whole, points[left], claimed_distance, threshold)
-                )
-            ):
+            use_rest = rest is not None
+            if not use_rest and best_whole is not None and found:
+                if claimed_distance is None:
+                    claimed_distance = manhattan_distance_map(
+                        index.reference.occupied & ~reference_occupied
+                    )
+                use_rest = mostly_claimed(best_whole, points[left], claimed_distance, threshold)
+            if best_whole is not None and use_rest:
                 if rest is None:
                     rest = registrar.prepare_reference(
                         reference_states(index.reference, reference_occupied, uses_free)
