@@ -149,6 +149,25 @@ def _local(ref: _Prepared, matrix: NDArray[np.float64]) -> NDArray[np.float64]:
     return _shift(-col0, -row0) @ matrix
 
 
+def _occupied_box(
+    states: NDArray[np.int8], role: str, purpose: str
+) -> tuple[NDArray[np.bool_], tuple[int, int, int, int]]:
+    """The occupied cells of a 2D state grid and their bounding box ``(r0, r1, c0, c1)``.
+
+    Raises
+    ------
+    MapError
+        If the grid is not 2D or has no occupied cell.
+    """
+    if states.ndim != 2:
+        raise MapError(f"{role} must be a 2D grid, got shape {states.shape}")
+    occ = states == OCCUPIED
+    box = _spectral.bounding_box(occ)
+    if box is None:
+        raise MapError(f"the {role} has no occupied cell, there is nothing {purpose}")
+    return occ, box
+
+
 def _check_int(name: str, value: Any, low: int, high: int) -> None:
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
     if not (ok and low <= value <= high):
@@ -296,13 +315,7 @@ class IFMIRegistrar:
             If the reference is not 2D or has no occupied cell.
         """
         states = np.asarray(reference_states)
-        if states.ndim != 2:
-            raise MapError(f"reference must be a 2D grid, got shape {states.shape}")
-        occ = states == OCCUPIED
-        box = _spectral.bounding_box(occ)
-        if box is None:
-            raise MapError("the reference has no occupied cell, there is nothing to register to")
-        r0, r1, c0, c1 = box
+        occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
@@ -345,13 +358,7 @@ class IFMIRegistrar:
 
     def _moving(self, moving_states: NDArray[np.int8], ref: _Prepared) -> _Moving:
         states = np.asarray(moving_states)
-        if states.ndim != 2:
-            raise MapError(f"moving map must be a 2D grid, got shape {states.shape}")
-        occ = states == OCCUPIED
-        box = _spectral.bounding_box(occ)
-        if box is None:
-            raise MapError("the moving map has no occupied cell, there is nothing to register")
-        r0, r1, c0, c1 = box
+        occ, (r0, r1, c0, c1) = _occupied_box(states, "moving map", "to register")
         crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
         # a moving map much larger than the reference is pooled more (bounded FFT sizes)
         extent = max(r1 - r0, c1 - c0)

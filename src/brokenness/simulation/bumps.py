@@ -112,6 +112,20 @@ def _theta(rng: np.random.Generator, max_rotation: float, min_rotation: float = 
     return magnitude if rng.random() < 0.5 else -magnitude
 
 
+def _bump(
+    rng: np.random.Generator,
+    scan: int,
+    radius: float,
+    max_rotation: float,
+    min_rotation: float = 0.0,
+) -> Bump:
+    """One bump at ``scan``: the turn, then the shift's length and direction, in this order."""
+    theta = _theta(rng, max_rotation, min_rotation)
+    return Bump(
+        scan, theta, float(rng.uniform(0.0, radius)), float(rng.uniform(0.0, 2.0 * math.pi))
+    )
+
+
 def draw_bumps(
     n_scans: int,
     probability: float,
@@ -147,18 +161,7 @@ def draw_bumps(
     _check(radius, max_rotation)
     events = rng.random(n_scans) < probability
     events[: max(margin, 0)] = False
-    out = []
-    for i in np.flatnonzero(events):
-        theta = _theta(rng, max_rotation)
-        out.append(
-            Bump(
-                int(i),
-                theta,
-                float(rng.uniform(0.0, radius)),
-                float(rng.uniform(0.0, 2.0 * math.pi)),
-            )
-        )
-    return out
+    return [_bump(rng, int(i), radius, max_rotation) for i in np.flatnonzero(events)]
 
 
 def draw_k_bumps(
@@ -213,18 +216,7 @@ def draw_k_bumps(
             idx = np.sort(rng.choice(np.arange(lo, hi), size=k, replace=False))
     else:
         idx = np.sort(rng.choice(np.arange(lo, hi), size=k, replace=False))
-    out = []
-    for i in idx:
-        theta = _theta(rng, max_rotation, min_rotation)
-        out.append(
-            Bump(
-                int(i),
-                theta,
-                float(rng.uniform(0.0, radius)),
-                float(rng.uniform(0.0, 2.0 * math.pi)),
-            )
-        )
-    return out
+    return [_bump(rng, int(i), radius, max_rotation, min_rotation) for i in idx]
 
 
 def apply_bumps(poses: ArrayLike, bumps: Sequence[Bump]) -> BumpedPoses:
