@@ -180,7 +180,7 @@ def soft_agreements(
     moved = np.empty((len(transforms), n, 2), dtype=np.float32)
     for i, t in enumerate(transforms):
         moved[i] = t.apply(points)
-    d = sample_at(distance_map, moved, threshold + 1.0).reshape(len(transforms), n)
+    d = sample_at(distance_map, moved, threshold + 1.0)  # shape (transforms, points)
     return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
 
 

@@ -437,11 +437,7 @@ class IFMIRegistrar:
         states = np.asarray(moving_states)
         key = self._memo_key()
         for memo in ref.memos:
-            if (
-                memo.key == key
-                and memo.states.shape == states.shape
-                and np.array_equal(memo.states, states)
-            ):
+            if memo.key == key and np.array_equal(memo.states, states):
                 return memo
         mov = self._moving(states, ref)
         memo = _Memo(key, states.copy(), mov, self._angle_correlation(ref, mov))
