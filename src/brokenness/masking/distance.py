@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -109,5 +111,5 @@ def sample_at(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=float(outside),
     )
-    count = int(np.prod(shape))
+    count = math.prod(shape)
     return np.asarray(out, dtype=np.float32).reshape(-1)[:count].reshape(shape)

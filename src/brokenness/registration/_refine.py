@@ -99,15 +99,20 @@ def refine_rigid(
     ]
     far = float(start_radius) + 1e3
     # the point and its four neighbours (central differences), sampled in one lookup
-    nudge = np.array([[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]], dtype=np.float32)
+    grid = np.empty((5, points.shape[0], 2), dtype=np.float32)
     # Small-matrix algebra below is done on Python floats: at a few hundred points per call
     # numpy's per-call overhead would dominate (this runs hundreds of times per map).
     for k, radius in enumerate(radii):
         c, s = math.cos(theta), math.sin(theta)
         rx = c * cx - s * cy  # rotated, centred points
         ry = s * cx + c * cy
-        q = np.stack([rx + mx, ry + my], axis=-1).astype(np.float32)
-        vals = sample_at(field, q[None, :, :] + nudge[:, None, :], far)
+        grid[:, :, 0] = rx + mx
+        grid[:, :, 1] = ry + my
+        grid[1, :, 0] += 1.0
+        grid[2, :, 0] -= 1.0
+        grid[3, :, 1] += 1.0
+        grid[4, :, 1] -= 1.0
+        vals = sample_at(field, grid, far)
         keep = np.flatnonzero(vals[0] < radius)
         if keep.size < 3:
             break
