@@ -324,6 +324,8 @@ def test_empty_maps_raise_map_error(maps: dict[str, OccupancyMap]) -> None:
         {"max_size": 10},
         {"rotation_peaks": 0},
         {"peak_ratio": 1.5},
+        {"rotation_whitening": 1.5},
+        {"rotation_whitening": True},
         {"refine": "yes"},
         {"agree_cells": -1.0},
         {"no_such_option": 1},
@@ -464,3 +466,29 @@ def test_remembered_analysis_is_only_reused_for_the_same_map(
     other, true_other = transformed(ref, 63.0, (-4, 6), shape=moving.shape)
     moving[...] = other
     check(narrow.candidates(prepared, moving, 4)[0].transform, true_other, moving)
+
+
+@pytest.mark.parametrize("shape", [(8, 10), (2, 2), (36, 50), (96, 64)])
+def test_packed_phase_correlation_matches_numpy(shape) -> None:
+    """The translation stage's OpenCV packed spectra give numpy's phase correlation."""
+    from brokenness.registration import _spectral
+
+    rng = np.random.default_rng(3)
+    a = rng.random((shape[0] // 2, shape[1] // 2)).astype(np.float32)
+    b = rng.random((shape[0] // 2, shape[1] // 2)).astype(np.float32)
+    fa = _spectral.whiten(np.fft.rfft2(a, s=shape).astype(np.complex64))
+    fb = _spectral.whiten(np.fft.rfft2(b, s=shape).astype(np.complex64))
+    pa, pb = _spectral.packed_spectrum(a, shape), _spectral.packed_spectrum(b, shape)
+    for twin in (False, True):
+        expected = np.fft.irfft2(fa * (fb if twin else np.conj(fb)), s=shape)
+        got = cv2.idft(cv2.mulSpectrums(pa, pb, 0, conjB=not twin), flags=cv2.DFT_REAL_OUTPUT)
+        np.testing.assert_allclose(got / (shape[0] * shape[1]), expected, atol=1e-5)
+
+
+def test_packed_sizes_are_even_and_fast() -> None:
+    from brokenness.registration._spectral import packed_size
+
+    sizes = [packed_size(n) for n in range(1, 400)]
+    assert all(m % 2 == 0 and m >= n for n, m in zip(range(1, 400), sizes, strict=True))
+    assert all(cv2.getOptimalDFTSize(m) == m for m in sizes)
+    assert packed_size(121) == 128 and packed_size(315) == 320

@@ -3,6 +3,14 @@
 Pure functions on arrays; :mod:`brokenness.registration.ifmi` strings them together. All
 images are float32, all spectra complex64 (half the memory of float64 and fast enough:
 the peaks are refined to sub-bin precision and a final full-resolution refinement follows).
+
+The translation stage, which runs once per rotation hypothesis, uses OpenCV's real DFT in
+its packed ("CCS") layout: a real ``H x W`` image gives a real ``H x W`` spectrum holding
+the ``W/2 + 1`` non-redundant columns, which ``cv2.mulSpectrums`` multiplies and
+``cv2.idft`` inverts without unpacking. On the 2-core machine this is about twice as fast
+as ``scipy.fft.rfft2`` / ``irfft2`` at the sizes used (300-400 cells per side), half of
+that from not zero-padding through ``s=``. :func:`packed_size` keeps both sides even, the
+layout :func:`whiten_packed` handles.
 """
 
 from __future__ import annotations
@@ -21,9 +29,12 @@ __all__ = [
     "coarse_indicator",
     "hann_window",
     "log_polar_signature",
+    "packed_size",
+    "packed_spectrum",
     "parabolic_offset",
     "polar_grid",
     "whiten",
+    "whiten_packed",
 ]
 
 F32 = NDArray[np.float32]
@@ -125,8 +136,11 @@ def log_polar_signature(
     return scipy.fft.rfft(polar, axis=1, workers=workers).astype(np.complex64)
 
 
-def whiten(spectrum: NDArray[np.complex64]) -> NDArray[np.complex64]:
+def whiten(spectrum: NDArray[np.complex64], exponent: float = 1.0) -> NDArray[np.complex64]:
     """Phase-only spectrum ``F / |F|`` (zero where ``|F|`` is negligible).
+
+    With ``exponent`` below 1, ``F / |F|^exponent``: a partial whitening that keeps some of
+    the weight of the strong frequencies (0 leaves ``F`` as it is).
 
     Works in place (and returns its argument) when given a complex64 array: the spectra
     whitened here are temporaries.
@@ -135,9 +149,65 @@ def whiten(spectrum: NDArray[np.complex64]) -> NDArray[np.complex64]:
     mag = np.abs(out)
     eps = np.float32(1e-6) * (float(mag.max()) if mag.size else 1.0) + np.float32(1e-30)
     np.maximum(mag, eps, out=mag)
+    if exponent != 1.0:
+        np.power(mag, np.float32(exponent), out=mag)
     np.reciprocal(mag, out=mag)
     out *= mag
     return out
+
+
+def packed_size(n: int) -> int:
+    """The smallest even length ``>= n`` that OpenCV's DFT transforms fast (2^a 3^b 5^c)."""
+    m = cv2.getOptimalDFTSize(max(int(n), 2))
+    while m % 2:
+        m = cv2.getOptimalDFTSize(m + 1)
+    return int(m)
+
+
+def packed_spectrum(image: F32, shape: tuple[int, int]) -> F32:
+    """Whitened DFT of ``image`` zero-padded to ``shape``, in OpenCV's packed layout.
+
+    ``shape`` must be even on both sides (:func:`packed_size`) and hold the image. Two such
+    spectra ``a``, ``b`` give the phase correlation ``cv2.idft(cv2.mulSpectrums(a, b, 0,
+    conjB=True), flags=cv2.DFT_REAL_OUTPUT)`` (unnormalised: ``H * W`` times that of
+    ``numpy.fft``).
+    """
+    rows, cols = image.shape
+    canvas = np.zeros(shape, dtype=np.float32)
+    canvas[:rows, :cols] = image
+    return whiten_packed(np.asarray(cv2.dft(canvas), dtype=np.float32))
+
+
+def whiten_packed(spectrum: F32) -> F32:
+    """:func:`whiten` for a spectrum in OpenCV's packed layout (even sides), in place.
+
+    In that layout (``cv2.dft`` of a real ``H x W`` image) columns ``1 .. W-2`` hold the
+    ``(real, imaginary)`` pairs of the horizontal frequencies ``1 .. W/2 - 1`` of every
+    row; the first and last columns hold the horizontal frequencies 0 and ``W/2``, whose
+    values along the rows are packed the same way (rows ``1 .. H-2`` in pairs, rows ``0``
+    and ``H-1`` real).
+    """
+    h, w = spectrum.shape
+    if h % 2 or w % 2 or h < 2 or w < 2:
+        raise ValueError(f"packed spectra need even sides, got {h} x {w}")
+    inner = spectrum[:, 1 : w - 1].view(np.complex64)  # (H, W/2 - 1) complex values
+    sides = slice(0, w, w - 1)  # columns 0 and W-1
+    re = spectrum[1 : h - 1 : 2, sides]  # (H/2 - 1, 2) pairs along the rows
+    im = spectrum[2 : h - 1 : 2, sides]
+    real = spectrum[0 : h : h - 1, sides]  # (2, 2) real values
+    inner_mag = np.abs(inner)
+    side_mag = np.sqrt(re * re + im * im)
+    real_mag = np.abs(real)
+    top = max(float(m.max(initial=0.0)) for m in (inner_mag, side_mag, real_mag))
+    eps = np.float32(1e-6 * top + 1e-30)  # as in whiten: zero where |F| is negligible
+    for mag in (inner_mag, side_mag, real_mag):
+        np.maximum(mag, eps, out=mag)
+        np.reciprocal(mag, out=mag)
+    inner *= inner_mag
+    spectrum[1 : h - 1 : 2, sides] = re * side_mag
+    spectrum[2 : h - 1 : 2, sides] = im * side_mag
+    spectrum[0 : h : h - 1, sides] = real * real_mag
+    return spectrum
 
 
 def parabolic_offset(left: float, centre: float, right: float) -> float:
