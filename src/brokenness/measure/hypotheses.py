@@ -19,6 +19,8 @@ __all__ = ["best_hypothesis"]
 REFINED_CANDIDATES = 2
 #: At most this many cells (an even stride of them) score the hypotheses of a step.
 SAMPLE_CELLS = 4000
+#: Largest number of trimmed-ICP iterations of a refinement.
+ICP_ITERATIONS = 20
 
 
 def best_hypothesis(
@@ -92,7 +94,9 @@ def _refinements(
         return []
     pivot = moved[agree].mean(axis=0)
     swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(swept, sample, index.nearest_points, gate=threshold + 1.0)
+    fitted = refine_transform(
+        swept, sample, index.nearest_points, gate=threshold + 1.0, iterations=ICP_ITERATIONS
+    )
     polished = polish_transform(
         fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
     )

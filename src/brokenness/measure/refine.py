@@ -152,9 +152,33 @@ def sweep_rotation(
     """
     n = int(round(half_range_deg / step_deg))
     deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
-    fan = [transform] + [_turn_about(pivot, d).compose(transform) for d in deltas]
-    scores = soft_agreements(distance_map, fan, points, threshold)
-    return fan[int(np.argmax(scores))]  # the first of equal scores: no turn wins ties
+    moved = transform.apply(points)
+    fan = np.concatenate([moved[None], _turned(moved, pivot, deltas)])
+    k = int(np.argmax(_soft_scores(distance_map, fan, threshold)))
+    # the first of equal scores: no turn wins ties
+    return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
+
+
+def _turned(
+    moved: NDArray[np.float64], pivot: NDArray[np.float64], angles: list[float]
+) -> NDArray[np.float64]:
+    """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``."""
+    a = np.asarray(angles, dtype=np.float64)[:, None]
+    c, s = np.cos(a), np.sin(a)
+    dx = moved[:, 0] - pivot[0]
+    dy = moved[:, 1] - pivot[1]
+    out = np.empty((a.shape[0], moved.shape[0], 2))
+    out[:, :, 0] = c * dx - s * dy + pivot[0]
+    out[:, :, 1] = s * dx + c * dy + pivot[1]
+    return out
+
+
+def _soft_scores(
+    distance_map: NDArray[np.float32], moved: NDArray[np.floating], threshold: float
+) -> NDArray[np.float64]:
+    """:func:`soft_agreement` of each set of moved points, ``moved`` of shape (K, N, 2)."""
+    d = sample_at(distance_map, moved, threshold + 1.0)  # shape (K, N)
+    return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
 
 
 def soft_agreement(
@@ -180,8 +204,7 @@ def soft_agreements(
     moved = np.empty((len(transforms), n, 2), dtype=np.float32)
     for i, t in enumerate(transforms):
         moved[i] = t.apply(points)
-    d = sample_at(distance_map, moved, threshold + 1.0)  # shape (transforms, points)
-    return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
+    return _soft_scores(distance_map, moved, threshold)
 
 
 def polish_transform(
@@ -200,7 +223,7 @@ def polish_transform(
     the threshold. This search climbs the (smoothed) count directly: it tries steps in
     rotation (about the centroid of the points) and in x and y, keeps any improvement, and
     halves the steps when none helps, down to 0.02 degrees and 0.05 cells. The moves of a
-    round are scored together (:func:`soft_agreements`) and the best improving one is taken.
+    round are scored together, in one lookup, and the best improving one is taken.
     """
     if points.shape[0] > max_points:
         points = points[:: int(math.ceil(points.shape[0] / max_points))]
@@ -208,33 +231,35 @@ def polish_transform(
     if moved.shape[0] == 0:
         return transform
     pivot = moved.mean(axis=0)
-
-    def around(t: RigidTransform, dr: float, dx: float, dy: float) -> RigidTransform:
-        return _turn_about(pivot, dr, dx, dy).compose(t)
-
     best = transform
     best_score = soft_agreement(distance_map, moved, threshold)
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
+    moves = np.empty((6, moved.shape[0], 2))
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
-        # the six compass moves around the current best, scored together; the best one is
-        # taken if it improves, else the steps are halved
-        moves = [
-            around(best, dr, dx, dy)
-            for dr, dx, dy in (
-                (rot_step, 0.0, 0.0),
-                (-rot_step, 0.0, 0.0),
-                (0.0, shift_step, 0.0),
-                (0.0, -shift_step, 0.0),
-                (0.0, 0.0, shift_step),
-                (0.0, 0.0, -shift_step),
-            )
-        ]
-        scores = soft_agreements(distance_map, moves, points, threshold)
-        evaluations += len(moves)
+        # the six compass moves around the current best (turns about the pivot, shifts in x
+        # and y), scored together; the best one is taken if it improves, else the steps
+        # are halved
+        steps = (
+            (rot_step, 0.0, 0.0),
+            (-rot_step, 0.0, 0.0),
+            (0.0, shift_step, 0.0),
+            (0.0, -shift_step, 0.0),
+            (0.0, 0.0, shift_step),
+            (0.0, 0.0, -shift_step),
+        )
+        moves[:2] = _turned(moved, pivot, [rot_step, -rot_step])
+        for i, (_, dx, dy) in enumerate(steps[2:], start=2):
+            moves[i] = moved
+            moves[i, :, 0] += dx
+            moves[i, :, 1] += dy
+        scores = _soft_scores(distance_map, moves, threshold)
+        evaluations += len(steps)
         k = int(np.argmax(scores))
         if scores[k] > best_score:
-            best, best_score = moves[k], float(scores[k])
+            best = _turn_about(pivot, *steps[k]).compose(best)
+            best_score = float(scores[k])
+            moved = best.apply(points)
         else:
             rot_step *= 0.5
             shift_step *= 0.5
