@@ -108,3 +108,25 @@ def test_gauss_newton_refinement_converges_on_the_distance_map():
         ),
         far.matrix,
     )
+
+
+def test_batched_gauss_newton_equals_one_at_a_time():
+    """The registration refines its promising hypotheses together; each comes out as it would
+    alone (a far one, with no inlier, unchanged)."""
+    states = _rooms()
+    field = _refine.distance_field(_refine.edges(states == 1))
+    pts = cell_points(states == 1)
+    starts = [
+        RigidTransform(math.radians(1.5), 2.0, -1.0).matrix,
+        RigidTransform(math.radians(-2.0), -1.0, 2.5).matrix,
+        RigidTransform(0.0, 1000.0, 1000.0).matrix,
+        RigidTransform(math.radians(0.3), 0.4, 0.2).matrix,
+    ]
+    kwargs = {"start_radius": 6.0, "end_radius": 1.5, "iterations": 8}
+    together = _refine.refine_rigid_many(field, pts, starts, **kwargs)
+    for start, got in zip(starts, together, strict=True):
+        np.testing.assert_allclose(
+            got, _refine.refine_rigid(field, pts, start, **kwargs), atol=1e-9
+        )
+    assert np.array_equal(together[2], starts[2])
+    assert _refine.refine_rigid_many(field, pts, [], **kwargs) == []

@@ -20,7 +20,7 @@ REFINED_CANDIDATES = 2
 #: At most this many cells (an even stride of them) score the hypotheses of a step.
 SAMPLE_CELLS = 4000
 #: Largest number of trimmed-ICP iterations of a refinement.
-ICP_ITERATIONS = 20
+ICP_ITERATIONS = 8
 
 
 def best_hypothesis(

@@ -121,10 +121,10 @@ MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
 #: rotation peaks are worth examining than for a single registration.
 _IFMI_RECURSION_OPTIONS = {"rotation_peaks": 3, "peak_ratio": 0.3, "translation_peaks": 3}
 #: ... and a wider search, tried when a step finds nothing significant with the above.
-_IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 8, "peak_ratio": 0.05, "translation_peaks": 3}
+_IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 6, "peak_ratio": 0.05, "translation_peaks": 3}
 #: The wider search is also tried, for R and R' each on its own, when its best hypothesis
 #: explains less than this share of the cells left.
-_THOROUGH_BELOW = 0.5
+_THOROUGH_BELOW = 0.4
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -408,7 +408,7 @@ def _recurse(
         # R lies mostly on matched walls: see "Two references") for its usual hypotheses,
         # plus those of the previous step (a part seen there, beside the larger one that won,
         # is often registered better than from what is left alone). If none is significant,
-        # or the best (or the best of R') explains less than half of what is left, it asks
+        # or the best (or the best of R') explains less than 40 % of what is left, it asks
         # once more with a wider search (``thorough``: more peaks, same prepared references)
         # for the reference(s) whose best fell short, and keeps the better answer.
         claimed_distance = None  # distance to the walls earlier partitions matched, if asked

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from ..masking.distance import sample_at
 
-__all__ = ["distance_field", "edges", "inlier_count", "refine_rigid"]
+__all__ = ["distance_field", "edges", "inlier_count", "refine_rigid", "refine_rigid_many"]
 
 
 def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -147,6 +147,102 @@ def refine_rigid(
     out = np.eye(3)
     out[:2, :2] = rot
     out[:2, 2] = t
+    return out
+
+
+def refine_rigid_many(
+    field: NDArray[np.float32],
+    points: NDArray[np.float64],
+    matrices: list[NDArray[np.float64]],
+    *,
+    start_radius: float,
+    end_radius: float,
+    iterations: int,
+) -> list[NDArray[np.float64]]:
+    """:func:`refine_rigid` of several starting transforms of the same points at once.
+
+    Each iteration samples the field for every transform still moving in one lookup; a
+    transform stops, as in :func:`refine_rigid`, when it has fewer than 3 inliers, its
+    system is singular or its step has converged.
+    """
+    k_all = len(matrices)
+    if k_all == 0:
+        return []
+    n = points.shape[0]
+    centre = points.mean(axis=0)
+    cx = points[:, 0] - centre[0]
+    cy = points[:, 1] - centre[1]
+    theta = np.array([math.atan2(m[1, 0], m[0, 0]) for m in matrices])
+    mx = np.array([m[0, 0] * centre[0] + m[0, 1] * centre[1] + m[0, 2] for m in matrices])
+    my = np.array([m[1, 0] * centre[0] + m[1, 1] * centre[1] + m[1, 2] for m in matrices])
+    iterations = max(1, iterations)
+    shrink = max(1, iterations // 2)
+    ratio = end_radius / start_radius
+    radii = [
+        start_radius * ratio ** (k / max(shrink - 1, 1)) if k < shrink else end_radius
+        for k in range(iterations)
+    ]
+    far = float(start_radius) + 1e3
+    active = list(range(k_all))
+    grid = np.empty((k_all, 5, n, 2), dtype=np.float32)
+    for k, radius in enumerate(radii):
+        if not active:
+            break
+        a = len(active)
+        idx = np.array(active)
+        c = np.cos(theta[idx])[:, None]
+        s = np.sin(theta[idx])[:, None]
+        rx = c * cx - s * cy  # (a, n) rotated, centred points
+        ry = s * cx + c * cy
+        g = grid[:a]
+        g[:, :, :, 0] = (rx + mx[idx, None])[:, None, :]
+        g[:, :, :, 1] = (ry + my[idx, None])[:, None, :]
+        g[:, 1, :, 0] += 1.0
+        g[:, 2, :, 0] -= 1.0
+        g[:, 3, :, 1] += 1.0
+        g[:, 4, :, 1] -= 1.0
+        vals = sample_at(field, g.reshape(a * 5, n, 2), far).reshape(a, 5, n)
+        keep = vals[:, 0] < radius  # (a, n)
+        counts = np.count_nonzero(keep, axis=1)
+        v = vals.astype(np.float64)
+        w = keep.astype(np.float64)
+        r = v[:, 0] * w
+        gx = 0.5 * (v[:, 1] - v[:, 2]) * w
+        gy = 0.5 * (v[:, 3] - v[:, 4]) * w
+        gt = gy * rx - gx * ry
+        # per transform, the 3x3 normal matrix and the right-hand side, as one batched product
+        rows = np.stack([gt, gx, gy, r], axis=1)  # (a, 4, n)
+        sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1))  # (a, 3, 4)
+        still = []
+        for j, h in enumerate(active):
+            if counts[j] < 3:
+                continue
+            (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = sums[j].tolist()
+            if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
+                continue
+            a00 += max(a00, 1e-9) * 1e-6
+            a11 += max(a11, 1e-9) * 1e-6
+            a22 += max(a22, 1e-9) * 1e-6
+            step = _solve3(a00, a01, a02, a11, a12, a22, -b0, -b1, -b2)
+            if step is None:
+                continue
+            d_theta, d_x, d_y = step
+            theta[h] += d_theta
+            mx[h] += d_x
+            my[h] += d_y
+            if k >= shrink and abs(d_theta) < 1e-5 and abs(d_x) < 1e-2 and abs(d_y) < 1e-2:
+                continue
+            still.append(h)
+        active = still
+    out = []
+    for h in range(k_all):
+        c, s = math.cos(theta[h]), math.sin(theta[h])
+        rot = np.array([[c, -s], [s, c]])
+        t = np.array([mx[h], my[h]]) - rot @ centre
+        m = np.eye(3)
+        m[:2, :2] = rot
+        m[:2, 2] = t
+        out.append(m)
     return out
 
 

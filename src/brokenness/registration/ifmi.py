@@ -507,6 +507,9 @@ class IFMIRegistrar:
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
         placed: list[NDArray[np.float64]] = []  # the moving points under each kept hypothesis
         best_n0 = prescreen[order[0]][0]
+        if ref.distance is not None:  # the first promising ones, refined together
+            promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
+            self._refine_together(ref, memo, promising[:max_candidates], start)
         for k in order:
             n0, z, full = prescreen[k]
             score = 0
@@ -528,6 +531,33 @@ class IFMIRegistrar:
             Candidate(RigidTransform.from_matrix(full), self._confidence(z))
             for _, z, _, full in scored
         ]
+
+    def _refine_together(
+        self, ref: _Prepared, memo: _Memo, hypotheses: list[NDArray[np.float64]], start: float
+    ) -> None:
+        """Refine ``hypotheses`` in one batch and remember them (see :meth:`_refined`)."""
+        assert ref.distance is not None
+        todo = [full for full in hypotheses if full.tobytes() + bytes([True]) not in memo.refined]
+        if not todo:
+            return
+        points = memo.moving.points
+        local = [_local(ref, full) for full in todo]
+        refined = _refine.refine_rigid_many(
+            ref.distance,
+            points,
+            local,
+            start_radius=start,
+            end_radius=self.agree_cells,
+            iterations=self.refine_iterations,
+        )
+        col0, row0 = ref.distance_offset
+        for full, before, after_matrix in zip(todo, local, refined, strict=True):
+            score = _refine.inlier_count(ref.distance, points, before, self.agree_cells)
+            after = _refine.inlier_count(ref.distance, points, after_matrix, self.agree_cells)
+            out = full
+            if after >= score:
+                out, score = _shift(col0, row0) @ after_matrix, after
+            memo.refined[full.tobytes() + bytes([True])] = (out, score)
 
     def _refined(
         self,
@@ -663,8 +693,8 @@ class IFMIRegistrar:
         per rotation can be handed on to be scored on the cells.
         """
         # statistics of the surface from a fixed subsample (speed), shared by its peaks
-        sub = surface[::4, ::4]
-        level = (float(sub.mean()), float(sub.std()))
+        mean, std = cv2.meanStdDev(np.ascontiguousarray(surface[::4, ::4]))
+        level = (float(mean[0, 0]), float(std[0, 0]))
         if count == 1:
             return [cls._peak(surface, level)]
         work = np.array(surface, dtype=np.float32, copy=True)
