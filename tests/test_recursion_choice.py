@@ -31,13 +31,23 @@ def test_without_a_reduced_hypothesis_the_best_is_kept():
     assert prefer_unexplained(best, None, margin=50.0) is best
 
 
+def test_within_manhattan_is_the_thresholded_distance_map():
+    from brokenness.masking import manhattan_distance_map, within_manhattan
+
+    rng = np.random.default_rng(5)
+    mask = rng.random((40, 50)) > 0.97
+    for threshold in (0.0, 1.0, 2.0, 2.5, 3.0):
+        expected = manhattan_distance_map(mask) <= threshold
+        assert np.array_equal(within_manhattan(mask, threshold), expected)
+
+
 def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
-    from brokenness.masking import manhattan_distance_map
+    from brokenness.masking import within_manhattan
     from brokenness.measure.choice import mostly_claimed
 
     claimed = np.zeros((20, 20), dtype=bool)
     claimed[5, :] = True  # a wall an earlier partition matched
-    distance = manhattan_distance_map(claimed)
+    distance = within_manhattan(claimed, 2.0)
     points = np.array([[x, 5.0] for x in range(6)] + [[x, 15.0] for x in range(4)])
     agree = np.ones(len(points), dtype=bool)
     identity = RigidTransform(0.0, 0.0, 0.0)

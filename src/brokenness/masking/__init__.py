@@ -6,7 +6,7 @@
 - :func:`manhattan_distance_map` -- the linear-time distance maps both are built on.
 """
 
-from .agreement import ReferenceIndex, cell_points, unmatched_reference
+from .agreement import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
 from .distance import lookup_distance, manhattan_distance_map, sample_at
 from .similarity import picture_distance
 
@@ -18,4 +18,5 @@ __all__ = [
     "manhattan_distance_map",
     "picture_distance",
     "unmatched_reference",
+    "within_manhattan",
 ]

@@ -20,7 +20,13 @@ from ..errors import MapError
 from ..grid import OccupancyMap
 from .distance import lookup_distance, manhattan_distance_map, sample_at
 
-__all__ = ["ReferenceIndex", "cell_points", "manhattan_ball", "unmatched_reference"]
+__all__ = [
+    "ReferenceIndex",
+    "cell_points",
+    "manhattan_ball",
+    "unmatched_reference",
+    "within_manhattan",
+]
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
@@ -164,11 +170,23 @@ def unmatched_reference(
     cols = np.rint(p[:, 0]).astype(np.intp)
     rows = np.rint(p[:, 1]).astype(np.intp)
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    hit = np.zeros((h, w), dtype=np.uint8)
-    hit[rows[inside], cols[inside]] = 1
+    hit = np.zeros((h, w), dtype=bool)
+    hit[rows[inside], cols[inside]] = True
+    return reference_occupied & ~within_manhattan(hit, threshold)
+
+
+def within_manhattan(mask: NDArray[np.bool_], threshold: float) -> NDArray[np.bool_]:
+    """Cells within Manhattan distance ``threshold`` of a True cell of ``mask``.
+
+    ``manhattan_distance_map(mask) <= threshold``, by one dilation (distances between cells
+    are whole numbers).
+    """
     radius = int(np.floor(threshold))
-    near = cv2.dilate(hit, manhattan_ball(radius)) if radius > 0 else hit
-    return reference_occupied & (near == 0)
+    if radius < 0:
+        return np.zeros(mask.shape, dtype=bool)
+    src = np.ascontiguousarray(mask, dtype=bool).view(np.uint8)
+    near = cv2.dilate(src, manhattan_ball(radius)) if radius > 0 else src
+    return np.asarray(near, dtype=bool)
 
 
 def manhattan_ball(radius: int) -> NDArray[np.uint8]:

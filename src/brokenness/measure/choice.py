@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
-from ..masking.distance import lookup_distance
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .hypotheses import best_hypothesis
@@ -139,12 +138,21 @@ def prefer_unexplained(
 def mostly_claimed(
     best: tuple[RigidTransform, NDArray[np.bool_]],
     points: NDArray[np.float64],
-    claimed_distance: NDArray[np.float32],
+    near_claimed: NDArray[np.bool_],
     threshold: float,
 ) -> bool:
-    """Whether most agreeing cells of ``best`` land on walls earlier partitions matched."""
+    """Whether most agreeing cells of ``best`` land on walls earlier partitions matched.
+
+    ``near_claimed`` marks the reference cells within ``threshold`` of such walls
+    (:func:`~brokenness.masking.within_manhattan`); the moved cells are rounded to the
+    nearest cell, cells off the grid are not on them.
+    """
     transform, agree = best
     if not agree.any():
         return False
-    on_claimed = lookup_distance(claimed_distance, transform.apply(points[agree])) <= threshold
+    moved = transform.apply(points[agree])
+    cols, rows = np.rint(moved[:, 0]), np.rint(moved[:, 1])
+    h, w = near_claimed.shape
+    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    on_claimed = near_claimed[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
     return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))

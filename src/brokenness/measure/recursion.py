@@ -97,7 +97,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
-from ..masking import ReferenceIndex, cell_points, manhattan_distance_map, unmatched_reference
+from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -411,7 +411,7 @@ def _recurse(
         # or the best (or the best of R') explains less than 40 % of what is left, it asks
         # once more with a wider search (``thorough``: more peaks, same prepared references)
         # for the reference(s) whose best fell short, and keeps the better answer.
-        claimed_distance = None  # distance to the walls earlier partitions matched, if asked
+        near_claimed = None  # cells near the walls earlier partitions matched, if asked
         rest = None
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
@@ -447,11 +447,11 @@ def _recurse(
             rest_ok = True
             use_rest = rest is not None
             if not use_rest and best_whole is not None and found:
-                if claimed_distance is None:
-                    claimed_distance = manhattan_distance_map(
-                        index.reference.occupied & ~reference_occupied
+                if near_claimed is None:
+                    near_claimed = within_manhattan(
+                        index.reference.occupied & ~reference_occupied, threshold
                     )
-                use_rest = mostly_claimed(best_whole, points[left], claimed_distance, threshold)
+                use_rest = mostly_claimed(best_whole, points[left], near_claimed, threshold)
             if best_whole is not None and use_rest:
                 if rest is None:
                     rest = registrar.prepare_reference(

@@ -20,7 +20,14 @@ from numpy.typing import NDArray
 
 from ..masking.distance import sample_at
 
-__all__ = ["distance_field", "edges", "inlier_count", "refine_rigid", "refine_rigid_many"]
+__all__ = [
+    "distance_field",
+    "edges",
+    "inlier_count",
+    "inlier_counts",
+    "refine_rigid",
+    "refine_rigid_many",
+]
 
 
 def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -52,6 +59,21 @@ def inlier_count(
     """Number of ``points`` that ``matrix`` (3x3) puts within ``radius`` of an occupied cell."""
     q = points @ matrix[:2, :2].T + matrix[:2, 2]
     return int(np.count_nonzero(sample_at(field, q, radius + 1e3) <= radius))
+
+
+def inlier_counts(
+    field: NDArray[np.float32],
+    points: NDArray[np.float64],
+    matrices: list[NDArray[np.float64]],
+    radius: float,
+) -> list[int]:
+    """:func:`inlier_count` of ``points`` under each of ``matrices``, in one lookup."""
+    if not matrices:
+        return []
+    stack = np.asarray(matrices, dtype=np.float64)
+    q = np.matmul(points, stack[:, :2, :2].transpose(0, 2, 1)) + stack[:, None, :2, 2]
+    near = sample_at(field, q, radius + 1e3) <= radius  # (len(matrices), N)
+    return [int(c) for c in np.count_nonzero(near, axis=1)]
 
 
 def refine_rigid(

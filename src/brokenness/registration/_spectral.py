@@ -127,7 +127,10 @@ def log_polar_signature(
     the same and the isotropic part, which carries no angle, drops out), and transformed
     along the angle axis. Returns shape ``(n_radii, n_angles//2 + 1)``.
     """
-    spec = scipy.fft.rfft2(image * window, s=(size, size), workers=workers)
+    canvas = np.zeros((size, size), dtype=np.float32)  # padded here: faster than s=
+    rows, cols = image.shape
+    np.multiply(image, window, out=canvas[:rows, :cols])
+    spec = scipy.fft.rfft2(canvas, workers=workers)
     mag = np.log1p(np.abs(spec)).astype(np.float32)
     mag = np.fft.fftshift(mag, axes=0)
     polar = cv2.remap(mag, grid[0], grid[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

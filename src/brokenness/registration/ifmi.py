@@ -495,13 +495,12 @@ class IFMIRegistrar:
         to_ref = _shift(ref.offset[0] + half, ref.offset[1] + half) @ _scale(f)
         from_mov = _scale(1.0 / f) @ _shift(-mov.offset[0] - half, -mov.offset[1] - half)
         start = max(4.0, 2.0 * f + 2.0)  # error of the reduced-image estimate, cells
-        prescreen = []
-        for matrix, z in hyps:
-            full = self._snap(to_ref @ matrix @ from_mov)
-            n0 = 0
-            if ref.distance is not None:
-                n0 = _refine.inlier_count(ref.distance, mov.points, _local(ref, full), start)
-            prescreen.append((n0, z, full))
+        fulls = [self._snap(to_ref @ matrix @ from_mov) for matrix, _ in hyps]
+        counts = [0] * len(fulls)
+        if ref.distance is not None:
+            local = [_local(ref, full) for full in fulls]
+            counts = _refine.inlier_counts(ref.distance, mov.points, local, start)
+        prescreen = [(n0, z, full) for n0, (_, z), full in zip(counts, hyps, fulls, strict=True)]
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
@@ -528,7 +527,10 @@ class IFMIRegistrar:
         # best first: agreeing cells, then peak quality, then spectral order (deterministic)
         scored.sort(key=lambda item: (-item[0], -item[1], item[2]))
         return [
-            Candidate(RigidTransform.from_matrix(full), self._confidence(z))
+            Candidate(
+                RigidTransform(math.atan2(full[1, 0], full[0, 0]), full[0, 2], full[1, 2]),
+                self._confidence(z),
+            )
             for _, z, _, full in scored
         ]
 
@@ -551,9 +553,9 @@ class IFMIRegistrar:
             iterations=self.refine_iterations,
         )
         col0, row0 = ref.distance_offset
-        for full, before, after_matrix in zip(todo, local, refined, strict=True):
-            score = _refine.inlier_count(ref.distance, points, before, self.agree_cells)
-            after = _refine.inlier_count(ref.distance, points, after_matrix, self.agree_cells)
+        scores = _refine.inlier_counts(ref.distance, points, local + refined, self.agree_cells)
+        for i, (full, after_matrix) in enumerate(zip(todo, refined, strict=True)):
+            score, after = scores[i], scores[len(todo) + i]
             out = full
             if after >= score:
                 out, score = _shift(col0, row0) @ after_matrix, after
