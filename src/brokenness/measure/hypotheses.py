@@ -18,7 +18,7 @@ __all__ = ["best_hypothesis"]
 #: Candidates (by smooth agreement) that get the full refinement in each step.
 REFINED_CANDIDATES = 2
 #: At most this many cells (an even stride of them) score the hypotheses of a step.
-SAMPLE_CELLS = 4000
+SAMPLE_CELLS = 3000
 #: Largest number of trimmed-ICP iterations of a refinement.
 ICP_ITERATIONS = 8
 
