@@ -52,14 +52,8 @@ def lookup_distance(distance_map: NDArray[np.float32], points: ArrayLike) -> NDA
     -------
     ndarray of float32, shape (N,)
     """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    cols = np.rint(p[:, 0])
-    rows = np.rint(p[:, 1])
-    h, w = distance_map.shape
-    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    out = np.full(p.shape[0], np.inf, dtype=np.float32)
-    out[inside] = distance_map[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
-    return out
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    return sample_at(distance_map, p, math.inf, nearest=True)
 
 
 def sample_at(
