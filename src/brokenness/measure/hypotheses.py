@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate
 from ..transform import RigidTransform
-from .refine import polish_transform, refine_transform, soft_agreement, sweep_rotation
+from .refine import polish_transform, refine_transform, soft_agreements, sweep_rotation
 
 __all__ = ["best_hypothesis"]
 
@@ -43,9 +43,6 @@ def best_hypothesis(
         {} if refined is None else refined
     )
 
-    def soft(moved: NDArray[np.float64]) -> float:
-        return soft_agreement(index.occupied_distance, moved, threshold)
-
     def hard(moved: NDArray[np.float64]) -> NDArray[np.bool_]:
         return index.occupied_agreement(moved, threshold)
 
@@ -59,7 +56,10 @@ def best_hypothesis(
         for c in candidates
         if abs(c.transform.scale - 1.0) < 1e-6
     ]
-    raw = [(soft(c.transform.apply(sample)), i, c) for i, c in enumerate(rigid)]
+    values = soft_agreements(
+        index.occupied_distance, [c.transform for c in rigid], sample, threshold
+    )
+    raw = [(float(v), i, c) for i, (v, c) in enumerate(zip(values, rigid, strict=True))]
     raw.sort(key=lambda item: (-item[0], item[1]))
     best: RigidTransform | None = None
     best_score = -1.0
@@ -69,7 +69,7 @@ def best_hypothesis(
         t = cand.transform
         key = (t.rotation, t.tx, t.ty)
         if key not in memo:
-            memo[key] = _refinements(t, sample, index, threshold, soft, hard)
+            memo[key] = _refinements(t, sample, index, threshold, hard)
         for option, value in memo[key]:
             if value > best_score:
                 best_score = value
@@ -84,7 +84,6 @@ def _refinements(
     sample: NDArray[np.float64],
     index: ReferenceIndex,
     threshold: float,
-    soft: Callable[[NDArray[np.float64]], float],
     hard: Callable[[NDArray[np.float64]], NDArray[np.bool_]],
 ) -> list[tuple[RigidTransform, float]]:
     """The stages of the refinement of one candidate, each with its score (best stage last)."""
@@ -100,4 +99,6 @@ def _refinements(
     polished = polish_transform(
         fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
     )
-    return [(option, soft(option.apply(sample))) for option in (polished, fitted, swept, transform)]
+    options = [polished, fitted, swept, transform]
+    scores = soft_agreements(index.occupied_distance, options, sample, threshold)
+    return [(option, float(v)) for option, v in zip(options, scores, strict=True)]
