@@ -105,71 +105,15 @@ def refine_rigid(
     ndarray, shape (3, 3)
         The refined rigid transform (the initial one if no point is an inlier).
     """
-    centre = points.mean(axis=0)
-    cx = points[:, 0] - centre[0]
-    cy = points[:, 1] - centre[1]
-    theta = math.atan2(matrix[1, 0], matrix[0, 0])
-    mx = float(matrix[0, 0] * centre[0] + matrix[0, 1] * centre[1] + matrix[0, 2])
-    my = float(matrix[1, 0] * centre[0] + matrix[1, 1] * centre[1] + matrix[1, 2])
-    iterations = max(1, iterations)
-    shrink = max(1, iterations // 2)
-    # inlier radius: geometric from start to end over the first half, then constant
-    ratio = end_radius / start_radius
-    radii = [
-        start_radius * ratio ** (k / max(shrink - 1, 1)) if k < shrink else end_radius
-        for k in range(iterations)
-    ]
-    far = float(start_radius) + 1e3
-    # the point and its four neighbours (central differences), sampled in one lookup
-    grid = np.empty((5, points.shape[0], 2), dtype=np.float32)
-    # Small-matrix algebra below is done on Python floats: at a few hundred points per call
-    # numpy's per-call overhead would dominate (this runs hundreds of times per map).
-    for k, radius in enumerate(radii):
-        c, s = math.cos(theta), math.sin(theta)
-        rx = c * cx - s * cy  # rotated, centred points
-        ry = s * cx + c * cy
-        grid[:, :, 0] = rx + mx
-        grid[:, :, 1] = ry + my
-        grid[1, :, 0] += 1.0
-        grid[2, :, 0] -= 1.0
-        grid[3, :, 1] += 1.0
-        grid[4, :, 1] -= 1.0
-        vals = sample_at(field, grid, far)
-        keep = np.flatnonzero(vals[0] < radius)
-        if keep.size < 3:
-            break
-        v = vals[:, keep].astype(np.float64)
-        r = v[0]
-        gx = 0.5 * (v[1] - v[2])
-        gy = 0.5 * (v[3] - v[4])
-        # d q / d theta is the rotated, centred point turned by 90 degrees
-        gt = gy * rx[keep] - gx * ry[keep]
-        a00, a01, a02 = float(gt @ gt), float(gt @ gx), float(gt @ gy)
-        a11, a12, a22 = float(gx @ gx), float(gx @ gy), float(gy @ gy)
-        b0, b1, b2 = float(gt @ r), float(gx @ r), float(gy @ r)
-        if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
-            break
-        # Levenberg-style damping of the diagonal, then Cramer's rule for the 3x3 system
-        a00 += max(a00, 1e-9) * 1e-6
-        a11 += max(a11, 1e-9) * 1e-6
-        a22 += max(a22, 1e-9) * 1e-6
-        step = _solve3(a00, a01, a02, a11, a12, a22, -b0, -b1, -b2)
-        if step is None:
-            break
-        d_theta, d_x, d_y = step
-        theta += d_theta
-        mx += d_x
-        my += d_y
-        # converged: the last step moved every point by about 0.01 cell or less
-        if k >= shrink and abs(d_theta) < 1e-5 and abs(d_x) < 1e-2 and abs(d_y) < 1e-2:
-            break
-    c, s = math.cos(theta), math.sin(theta)
-    rot = np.array([[c, -s], [s, c]])
-    t = np.array([mx, my]) - rot @ centre
-    out = np.eye(3)
-    out[:2, :2] = rot
-    out[:2, 2] = t
-    return out
+    out = refine_rigid_many(
+        field,
+        points,
+        [matrix],
+        start_radius=start_radius,
+        end_radius=end_radius,
+        iterations=iterations,
+    )
+    return out[0]
 
 
 def refine_rigid_many(

@@ -575,25 +575,13 @@ class IFMIRegistrar:
         if hit is not None:
             return hit
         assert ref.distance is not None
-        points = memo.moving.points
-        local = _local(ref, full)
-        score = _refine.inlier_count(ref.distance, points, local, self.agree_cells)
-        out = full
         if refine:
-            refined = _refine.refine_rigid(
-                ref.distance,
-                points,
-                local,
-                start_radius=start,
-                end_radius=self.agree_cells,
-                iterations=self.refine_iterations,
-            )
-            after = _refine.inlier_count(ref.distance, points, refined, self.agree_cells)
-            if after >= score:
-                col0, row0 = ref.distance_offset
-                out, score = _shift(col0, row0) @ refined, after
-        memo.refined[key] = (out, score)
-        return out, score
+            self._refine_together(ref, memo, [full], start)
+            return memo.refined[key]
+        points = memo.moving.points
+        score = _refine.inlier_count(ref.distance, points, _local(ref, full), self.agree_cells)
+        memo.refined[key] = (full, score)
+        return full, score
 
     # -- internals ----------------------------------------------------------------------------
     @staticmethod
