@@ -143,13 +143,16 @@ def refine_rigid_many(
     my = np.array([m[1, 0] * centre[0] + m[1, 1] * centre[1] + m[1, 2] for m in matrices])
     iterations = max(1, iterations)
     shrink = max(1, iterations // 2)
+    # inlier radius: geometric from start to end over the first half, then constant
     ratio = end_radius / start_radius
     radii = [
         start_radius * ratio ** (k / max(shrink - 1, 1)) if k < shrink else end_radius
         for k in range(iterations)
     ]
     far = float(start_radius) + 1e3
-    active = list(range(k_all))
+    active = list(range(k_all))  # the transforms still moving
+    # per transform, each point and its four neighbours (central differences), all sampled
+    # in one lookup
     grid = np.empty((k_all, 5, n, 2), dtype=np.float32)
     for k, radius in enumerate(radii):
         if not active:
@@ -175,7 +178,7 @@ def refine_rigid_many(
         r = v[:, 0] * w
         gx = 0.5 * (v[:, 1] - v[:, 2]) * w
         gy = 0.5 * (v[:, 3] - v[:, 4]) * w
-        gt = gy * rx - gx * ry
+        gt = gy * rx - gx * ry  # d q / d theta is the rotated, centred point turned by 90 deg
         # per transform, the 3x3 normal matrix and the right-hand side, as one batched product
         rows = np.stack([gt, gx, gy, r], axis=1)  # (a, 4, n)
         sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1))  # (a, 3, 4)
@@ -186,6 +189,8 @@ def refine_rigid_many(
             (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = sums[j].tolist()
             if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
                 continue
+            # Levenberg-style damping of the diagonal, then Cramer's rule for the 3x3 system
+            # (small-matrix algebra on Python floats: numpy's per-call overhead would dominate)
             a00 += max(a00, 1e-9) * 1e-6
             a11 += max(a11, 1e-9) * 1e-6
             a22 += max(a22, 1e-9) * 1e-6
@@ -196,6 +201,7 @@ def refine_rigid_many(
             theta[h] += d_theta
             mx[h] += d_x
             my[h] += d_y
+            # converged: the last step moved every point by about 0.01 cell or less
             if k >= shrink and abs(d_theta) < 1e-5 and abs(d_x) < 1e-2 and abs(d_y) < 1e-2:
                 continue
             still.append(h)
