@@ -229,7 +229,9 @@ class IFMIRegistrar:
         A moving cell agrees with the reference when it lies within this distance (cells)
         of an occupied reference cell (ranking of the hypotheses).
     workers : int, optional
-        ``workers`` of :mod:`scipy.fft` (None: one thread).
+        ``workers`` of :mod:`scipy.fft`, which computes the rotation stage's spectra (None:
+        one thread). The translation stage uses OpenCV's DFT, whose threads
+        ``cv2.setNumThreads`` sets.
     **unknown
         Rejected: any other keyword raises :class:`ParameterError` (so that a misspelt
         option of ``make_registrar("ifmi", ...)`` is a one-line error, not a ``TypeError``).
