@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..grid import OccupancyMap
-from ..masking import ReferenceIndex
+from ..masking import ReferenceIndex, sample_at
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .hypotheses import best_hypothesis
@@ -150,9 +150,6 @@ def mostly_claimed(
     transform, agree = best
     if not agree.any():
         return False
-    moved = transform.apply(points[agree])
-    cols, rows = np.rint(moved[:, 0]), np.rint(moved[:, 1])
-    h, w = near_claimed.shape
-    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    on_claimed = near_claimed[rows[inside].astype(np.intp), cols[inside].astype(np.intp)]
+    flags = near_claimed.view(np.uint8).astype(np.float32)
+    on_claimed = sample_at(flags, transform.apply(points[agree]), 0.0, nearest=True) > 0.5
     return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))

@@ -189,8 +189,7 @@ def soft_agreement(
     ``d`` is the reference's Manhattan distance map sampled bilinearly at the moved points
     (far away outside the grid), so that sub-cell moves change the score.
     """
-    d = sample_at(distance_map, moved, threshold + 1.0)
-    return float(np.maximum(threshold + 1.0 - d, 0.0).sum(dtype=np.float64))
+    return float(_soft_scores(distance_map, moved[None], threshold)[0])
 
 
 def soft_agreements(

@@ -157,6 +157,11 @@ def _local(ref: _Prepared, matrix: NDArray[np.float64]) -> NDArray[np.float64]:
     return _shift(-col0, -row0) @ matrix
 
 
+def _refined_key(full: NDArray[np.float64], refine: bool) -> bytes:
+    """Key of a hypothesis in :attr:`_Memo.refined`: its matrix, and whether it is refined."""
+    return full.tobytes() + bytes([refine])
+
+
 def _occupied_box(
     states: NDArray[np.int8], role: str, purpose: str
 ) -> tuple[NDArray[np.bool_], tuple[int, int, int, int]]:
@@ -541,7 +546,7 @@ class IFMIRegistrar:
     ) -> None:
         """Refine ``hypotheses`` in one batch and remember them (see :meth:`_refined`)."""
         assert ref.distance is not None
-        todo = [full for full in hypotheses if full.tobytes() + bytes([True]) not in memo.refined]
+        todo = [full for full in hypotheses if _refined_key(full, True) not in memo.refined]
         if not todo:
             return
         points = memo.moving.points
@@ -561,7 +566,7 @@ class IFMIRegistrar:
             out = full
             if after >= score:
                 out, score = _shift(col0, row0) @ after_matrix, after
-            memo.refined[full.tobytes() + bytes([True])] = (out, score)
+            memo.refined[_refined_key(full, True)] = (out, score)
 
     def _refined(
         self,
@@ -572,7 +577,7 @@ class IFMIRegistrar:
         refine: bool,
     ) -> tuple[NDArray[np.float64], int]:
         """A hypothesis and its agreeing outline cells, refined if ``refine`` (remembered)."""
-        key = full.tobytes() + bytes([refine])
+        key = _refined_key(full, refine)
         hit = memo.refined.get(key)
         if hit is not None:
             return hit
