@@ -401,6 +401,7 @@ def _recurse(
         if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
             break  # what is left is scattered noise: nothing to register
         left = np.flatnonzero(remaining)
+        left_points = points[left]
         n = left.size
         chance = n * p0
         spread = math.sqrt(chance * (1.0 - p0))
@@ -443,7 +444,7 @@ def _recurse(
             if widen_whole:
                 fresh = attempt.candidates(whole, moving_states, limit)
                 pool += fresh
-                best_whole = choose(pool, points[left], index, threshold, needed, refined, context)
+                best_whole = choose(pool, left_points, index, threshold, needed, refined, context)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
             best = best_whole
             rest_ok = True
@@ -453,7 +454,7 @@ def _recurse(
                     near_claimed = within_manhattan(
                         index.reference.occupied & ~reference_occupied, threshold
                     )
-                use_rest = mostly_claimed(best_whole, points[left], near_claimed, threshold)
+                use_rest = mostly_claimed(best_whole, left_points, near_claimed, threshold)
             if best_whole is not None and use_rest:
                 if rest is None:
                     rest = registrar.prepare_reference(
@@ -463,7 +464,7 @@ def _recurse(
                     fresh_rest = attempt.candidates(rest, moving_states, limit)
                     pool_rest += fresh_rest
                     best_rest = choose(
-                        pool_rest, points[left], index, threshold, needed, refined, context
+                        pool_rest, left_points, index, threshold, needed, refined, context
                     )
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)
                 rest_ok = not widen_rest
@@ -475,7 +476,7 @@ def _recurse(
             break
         transform, agree = best
         k = int(np.count_nonzero(agree))
-        members = left[with_fringe(transform, points[left], agree, index, merge_threshold)]
+        members = left[with_fringe(transform, left_points, agree, index, merge_threshold)]
         moved = transform.apply(points[members])
         # Merge into an earlier partition whose transform explains this set as well.
         target = merge_target(found, points[members], index, merge_threshold)
