@@ -18,8 +18,11 @@ from .result import NOT_OCCUPIED, UNASSIGNED, Partition
 __all__ = [
     "Found",
     "assemble",
+    "JOIN_SHARE",
+    "consolidate",
     "labels_in_original_grid",
     "merge_target",
+    "owners",
     "reassign",
     "with_fringe",
 ]
@@ -83,6 +86,14 @@ def merge_target(
     return best
 
 
+def owners(found: list[Found], n_points: int) -> NDArray[np.intp]:
+    """Partition (index into ``found``) of each of ``n_points`` cells, ``-1`` for none."""
+    owner = np.full(n_points, -1, dtype=np.intp)
+    for j, f in enumerate(found):
+        owner[f.members] = j
+    return owner
+
+
 def reassign(
     found: list[Found],
     points: NDArray[np.float64],
@@ -102,9 +113,7 @@ def reassign(
     """
     if len(found) < 2:
         return found
-    owner = np.full(points.shape[0], -1, dtype=np.intp)
-    for j, f in enumerate(found):
-        owner[f.members] = j
+    owner = owners(found, points.shape[0])
     kept = list(range(len(found)))
     while True:
         distances = np.stack(
@@ -193,3 +202,70 @@ def labels_in_original_grid(
     lab = labels[r, c]
     out[occ] = np.where(lab >= 0, lab, UNASSIGNED)
     return out
+
+
+def consolidate(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    merge_threshold: float,
+    min_cells: int,
+) -> list[Found]:
+    """Join partitions that are one rigid piece under one of their two transforms.
+
+    The recursion merges a new set into an *earlier* partition whose transform explains it
+    (:func:`merge_target`); a partition found later (by :mod:`~brokenness.measure.recovery`)
+    can explain an earlier one just as well. That happens in symmetric buildings: a part
+    first placed at a symmetric twin of its true place (turned by 90 or 180 degrees) agrees
+    with the reference there, and the piece of it found again later agrees in its true
+    place. Such partitions are not "off" relative to each other. Smallest first, a partition
+    explained by another's transform (the test of :func:`merge_target`) joins it when one
+    of the two transforms makes at least :data:`JOIN_SHARE` of the cells of both agree
+    (within ``threshold``; neighbouring parts of a regular building can pass the loose test
+    alone). The joined partition keeps that transform (the one that makes more cells agree),
+    and the cells are reassigned.
+    """
+    while len(found) > 1:
+        for j in sorted(range(len(found)), key=lambda q: (found[q].members.size, q)):
+            joined = _joined(found, j, points, index, threshold, merge_threshold)
+            if joined is not None:
+                break
+        else:
+            return found
+        i, partition = joined
+        rest = [f for q, f in enumerate(found) if q not in (i, j)]
+        found = reassign([*rest, partition], points, index, threshold, min_cells)
+    return found
+
+
+#: Share of the cells of two partitions that one transform must align to join them.
+JOIN_SHARE = 0.8
+
+
+def _joined(
+    found: list[Found],
+    j: int,
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    merge_threshold: float,
+) -> tuple[int, Found] | None:
+    """The partition ``j`` joins (its index) and the joined partition, if any."""
+    others = [q for q in range(len(found)) if q != j]
+    target = merge_target(
+        [found[q] for q in others], points[found[j].members], index, merge_threshold
+    )
+    if target is None:
+        return None
+    i = others[target]
+    union = np.concatenate([found[i].members, found[j].members])
+    pts = points[union]
+    agreeing = [
+        int(np.count_nonzero(index.occupied_agreement(found[q].transform.apply(pts), threshold)))
+        for q in (i, j)
+    ]
+    keep = found[i] if agreeing[0] >= agreeing[1] else found[j]
+    if max(agreeing) < JOIN_SHARE * union.size:
+        return None
+    return i, Found(keep.transform, union, keep.confidence, found[i].seconds + found[j].seconds)

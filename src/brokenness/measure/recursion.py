@@ -107,11 +107,13 @@ from .choice import Neighbourhood, choose, mostly_claimed, prefer_unexplained
 from .partitions import (
     Found,
     assemble,
+    consolidate,
     labels_in_original_grid,
     merge_target,
     reassign,
     with_fringe,
 )
+from .recovery import recover
 from .result import BrokennessResult, Partition
 from .views import reference_states, remainder_states, walls_connected
 
@@ -282,12 +284,17 @@ def compute_brokenness(
     points = cell_points(working.occupied)  # (N, 2), row-major order
     n_total = points.shape[0]
     min_cells = max(min_partition_cells, math.ceil(min_partition_fraction * n_total))
+    uses_free = bool(getattr(registrar, "uses_free_space", True))
+    whole = registrar.prepare_reference(
+        reference_states(index.reference, index.reference.occupied, uses_free)
+    )
     found = _recurse(
         working,
         points,
         index,
         registrar,
         thorough,
+        whole,
         threshold=threshold,
         min_cells=min_cells,
         significance=significance,
@@ -295,7 +302,25 @@ def compute_brokenness(
         max_partitions=max_partitions,
         max_candidates=max_candidates,
     )
+    if thorough is not None:
+        found = recover(
+            found,
+            points,
+            working,
+            index,
+            thorough,
+            whole,
+            threshold=threshold,
+            min_cells=min_cells,
+            significance=significance,
+            merge_threshold=merge_threshold,
+            max_partitions=max_partitions,
+            max_candidates=2 * max_candidates,
+            uses_free=uses_free,
+            drop_isolated=walls_connected(index.reference),
+        )
     found = reassign(found, points, index, threshold, min_cells)
+    found = consolidate(found, points, index, threshold, merge_threshold, min_cells)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
     )
@@ -369,6 +394,7 @@ def _recurse(
     index: ReferenceIndex,
     registrar: Registrar,
     thorough: Registrar | None,
+    whole: Any,
     *,
     threshold: float,
     min_cells: int,
@@ -385,9 +411,6 @@ def _recurse(
     uses_free = bool(getattr(registrar, "uses_free_space", True))
     drop_isolated = walls_connected(index.reference)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    whole = registrar.prepare_reference(
-        reference_states(index.reference, reference_occupied, uses_free)
-    )
     found: list[Found] = []
     carried: list[Candidate] = []  # the previous step's hypotheses, from R and R'
     carried_rest: list[Candidate] = []  # ... from R' only

@@ -1,0 +1,371 @@
+"""Recovery: partitions that the greedy recursion lost, found again among incoherent cells.
+
+The recursion takes the largest part first, and every partition it finds also takes the
+cells of parts not yet found that land within ``threshold`` of a reference wall under its
+transform by coincidence. In a building of similar rooms and long straight walls that share
+is large (10-15 % of a part's cells per wrong transform in MIT building 31), so a small
+partition can lose most of its cells to the four or five partitions found before it; what
+is left of it then falls below the smallest partition, or is too little to be registered,
+and the recursion ends one partition short.
+
+Once all the transforms are known, such cells are easy to tell apart: a partition is a
+contiguous stretch of the robot's run, so around a cell that truly belongs to its partition
+most occupied cells agree with the reference under that partition's transform too, while a
+cell taken by coincidence lies among cells that do not. :func:`recover` therefore, after
+the recursion:
+
+1. gives every cell to the partition that aligns it best
+   (:func:`~brokenness.measure.partitions.reassign`);
+2. measures each cell's *support* (:func:`agreement_support`): the share of the occupied
+   cells in the ``(2 r + 1)``-cell square around it (``r =`` :data:`SUPPORT_RADIUS`) that
+   agree under its partition's transform. Cells of no partition, and cells with a support
+   below :data:`SUPPORT_SHARE`, are *suspects* (a partition's own cells have a support near
+   1, about 0.5 on its border);
+3. registers the suspects with the whole reference -- first only those in regions of
+   suspects (at least :data:`DENSE_SHARE` of the cells around them are suspects: a lost
+   partition is a region of them, the borders of the partitions found are lines of them),
+   then, if that finds nothing and the two differ, all of them -- and keeps the best
+   hypothesis that is not a partition already found;
+4. counts it as a new partition if the suspects it explains *coherently* (they agree under
+   it, and so do at least :data:`SUPPORT_SHARE` of the cells around them: coincidences are
+   scattered) pass the recursion's stopping rule on the suspects (``k >= n p0 + z sigma``
+   and the smallest partition), it is not explained by a partition already found
+   (:func:`~brokenness.measure.partitions.merge_target`), and it keeps at least the
+   smallest partition's cells when every cell goes to its best partition again;
+5. repeats until nothing new is found (or ``max_partitions`` is reached).
+
+On the 160 simulated maps of degrees 2-5 of the benchmarks, the recovery (with
+:func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 144 maps
+instead of 136, and on the 3 x 2 benchmark map of building 31 it finds the sixth partition
+at every angle tried (10-25 degrees) where the recursion alone finds five.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from ..grid import OCCUPIED, OccupancyMap
+from ..masking import ReferenceIndex
+from ..registration.base import Candidate, Registrar
+from ..transform import RigidTransform
+from .hypotheses import best_hypothesis
+from .partitions import Found, merge_target, reassign, with_fringe
+from .views import remainder_states
+
+__all__ = ["DENSE_SHARE", "SUPPORT_RADIUS", "SUPPORT_SHARE", "agreement_support", "recover"]
+
+#: Half-width (cells) of the square window in which a cell's support is counted
+#: (0.6 m at 5 cm cells).
+SUPPORT_RADIUS = 12
+#: A cell whose partition's transform makes fewer than this share of the occupied cells
+#: around it agree is a suspect; a hypothesis explains a cell coherently when it makes at
+#: least this share agree.
+SUPPORT_SHARE = 0.4
+#: Suspects with at least this share of suspects around them form the regions searched first.
+DENSE_SHARE = 0.3
+#: ... and all suspects are searched next, unless the regions hold this share of them already.
+_SAME_SET = 0.8
+#: Candidates (the best by plain agreement) whose coherent agreement is counted per search.
+_COHERENT_RANKED = 4
+#: Of those, the best (by coherent agreement) refined on the cells.
+_REFINED = 2
+
+
+def agreement_support(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    radius: int = SUPPORT_RADIUS,
+) -> NDArray[np.float64]:
+    """Per occupied cell, the share of the occupied cells around it that agree with the
+    reference under its partition's transform.
+
+    Parameters
+    ----------
+    found : list of Found
+        The partitions (members index ``points``).
+    points : ndarray, shape (N, 2)
+        The map's occupied cells, ``(x, y)``.
+    index : ReferenceIndex
+        The reference.
+    threshold : float
+        Agreement threshold (Manhattan distance in cells).
+    shape : (int, int)
+        Shape of the map grid.
+    radius : int
+        Half-width of the square window, in cells.
+
+    Returns
+    -------
+    ndarray of float64
+        In [0, 1]; 0 for cells of no partition.
+    """
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    everything = np.ones(points.shape[0], dtype=bool)
+    around = _window_counts(rows, cols, everything, everything, shape, radius)
+    support = np.zeros(points.shape[0])
+    for f in found:
+        if f.members.size == 0:
+            continue
+        at = np.zeros(points.shape[0], dtype=bool)
+        at[f.members] = True
+        support[at] = _share(f.transform, points, at, index, threshold, shape, radius, around)
+    return support
+
+
+def _share(
+    transform: RigidTransform,
+    points: NDArray[np.float64],
+    at: NDArray[np.bool_],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    radius: int,
+    around: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """At the cells ``at``, the share of the occupied cells around that agree under
+    ``transform`` (``around``: how many occupied cells there are around each cell)."""
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
+    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
+    near = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+    near[near] = index.occupied_agreement(transform.apply(points[near]), threshold)
+    return _window_counts(rows, cols, near, at, shape, radius) / around[at]
+
+
+def _window_counts(
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    which: NDArray[np.bool_],
+    at: NDArray[np.bool_],
+    shape: tuple[int, int],
+    radius: int,
+) -> NDArray[np.float64]:
+    """At the cells ``at``, how many ``which`` cells lie in the square window around them.
+
+    Only the box around ``at`` is counted (one integer box filter)."""
+    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
+    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
+    inside = which & (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+    grid = np.zeros((r1 - r0, c1 - c0), np.uint8)
+    grid[rows[inside] - r0, cols[inside] - c0] = 1
+    side = 2 * radius + 1
+    counts = cv2.boxFilter(
+        grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
+    )
+    return counts[rows[at] - r0, cols[at] - c0].astype(np.float64)
+
+
+def _new_ones(
+    candidates: list[Candidate], found: list[Found], pts: NDArray[np.float64], tolerance: float
+) -> list[Candidate]:
+    """The candidates that put ``pts`` (on average) more than ``tolerance`` cells away from
+    where every partition's transform puts them: the others are partitions already found,
+    whose border cells are among the suspects."""
+    if not candidates or not found:
+        return candidates
+    picked = pts[:: max(1, pts.shape[0] // 200)]
+    sample = np.column_stack([picked, np.ones(picked.shape[0])])
+
+    def moved(transforms: list[RigidTransform]) -> NDArray[np.float64]:
+        return np.stack([t.matrix[:2] for t in transforms]) @ sample.T  # (T, 2, M)
+
+    a = moved([c.transform for c in candidates])
+    b = moved([f.transform for f in found])
+    apart = np.linalg.norm(a[:, None] - b[None], axis=2).mean(axis=2)  # (C, F)
+    return [c for c, far in zip(candidates, (apart > tolerance).all(axis=1), strict=True) if far]
+
+
+def recover(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    registrar: Registrar,
+    reference: Any,
+    *,
+    threshold: float,
+    min_cells: int,
+    significance: float,
+    merge_threshold: float,
+    max_partitions: int,
+    max_candidates: int,
+    uses_free: bool,
+    drop_isolated: bool,
+) -> list[Found]:
+    """The partitions of the recursion, reassigned, plus those found again among suspects.
+
+    See the module docstring for the steps and the tests a new partition must pass.
+
+    Parameters
+    ----------
+    found : list of Found
+        The recursion's partitions (members index ``points``).
+    points : ndarray, shape (N, 2)
+        The map's occupied cells, ``(x, y)``.
+    working : OccupancyMap
+        The map at the reference's resolution.
+    index : ReferenceIndex
+        The reference.
+    registrar : Registrar
+        The registration (the recursion's wider search), and ``reference`` its prepared whole
+        reference.
+    threshold, min_cells, significance, merge_threshold, max_partitions
+        As in the recursion: agreement threshold, smallest partition, ``z`` of the chance
+        test, loose threshold of the merge test, largest number of partitions.
+    max_candidates : int
+        Registration hypotheses asked for per round.
+    uses_free, drop_isolated : bool
+        How the registration sees the suspect cells (as for the recursion's remainder).
+
+    Returns
+    -------
+    list of Found
+        Every cell given to the partition that aligns it best
+        (:func:`~brokenness.measure.partitions.reassign`).
+    """
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    everything = np.ones(points.shape[0], dtype=bool)
+    around = _window_counts(rows, cols, everything, everything, working.shape, SUPPORT_RADIUS)
+    search = _Search(
+        points,
+        working,
+        index,
+        registrar,
+        reference,
+        around,
+        threshold=threshold,
+        min_cells=min_cells,
+        significance=significance,
+        merge_threshold=merge_threshold,
+        max_candidates=max_candidates,
+        uses_free=uses_free,
+        drop_isolated=drop_isolated,
+    )
+    found = reassign(found, points, index, threshold, min_cells)
+    while found and len(found) < max_partitions:
+        t0 = time.perf_counter()
+        suspect = agreement_support(found, points, index, threshold, working.shape) < SUPPORT_SHARE
+        if np.count_nonzero(suspect) < min_cells:
+            break
+        # first the regions of suspects (a lost partition is a region of them; the borders
+        # of the partitions found are lines of them), then every suspect
+        dense = suspect.copy()
+        dense[suspect] = (
+            _window_counts(rows, cols, suspect, suspect, working.shape, SUPPORT_RADIUS)
+            >= DENSE_SHARE * around[suspect]
+        )
+        tries = [dense]
+        if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
+            tries.append(suspect)
+        new = None
+        for cells in tries:
+            new = search.lost_partition(found, cells)
+            if new is not None:
+                break
+        if new is None:
+            break
+        new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
+        grown = reassign([*found, new], points, index, threshold, min_cells)
+        if len(grown) <= len(found):
+            break  # it kept too few cells once every cell went to its best partition
+        found = grown
+    return found
+
+
+@dataclass(frozen=True)
+class _Search:
+    """What a search for a lost partition among suspect cells needs (fixed for a map):
+    one registration of the suspects, and the tests its best hypothesis must pass."""
+
+    points: NDArray[np.float64]
+    working: OccupancyMap
+    index: ReferenceIndex
+    registrar: Registrar
+    reference: Any
+    around: NDArray[np.float64]  # occupied cells in the window around each cell
+    threshold: float
+    min_cells: int
+    significance: float
+    merge_threshold: float
+    max_candidates: int
+    uses_free: bool
+    drop_isolated: bool
+
+    def lost_partition(self, found: list[Found], cells: NDArray[np.bool_]) -> Found | None:
+        """The partition that ``cells`` hide, if its hypothesis passes every test."""
+        n = int(np.count_nonzero(cells))
+        if n < self.min_cells:
+            return None
+        p0 = self.index.chance_agreement(self.threshold)
+        chance = n * p0
+        needed = max(self.min_cells, chance + self.significance * math.sqrt(chance * (1.0 - p0)))
+        pts = self.points
+        rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
+        states = remainder_states(
+            self.working, rows, cols, cells, self.uses_free, self.drop_isolated
+        )
+        if np.count_nonzero(states == OCCUPIED) < self.min_cells:
+            return None
+        left = np.flatnonzero(cells)
+        candidates = _new_ones(
+            self.registrar.candidates(self.reference, states, self.max_candidates),
+            found,
+            pts[left],
+            self.merge_threshold,
+        )
+        if not candidates:
+            return None
+        # the cells a hypothesis explains count only where the cells around agree under it
+        # too (a partition is a contiguous region; coincidences are scattered); that is
+        # counted for the best few candidates by plain agreement
+        plain = [
+            np.count_nonzero(
+                self.index.occupied_agreement(c.transform.apply(pts[left]), self.threshold)
+            )
+            for c in candidates
+        ]
+        ranked = sorted(range(len(candidates)), key=lambda q: (-plain[q], q))[:_COHERENT_RANKED]
+        counts = {
+            q: np.count_nonzero(self._coherent(candidates[q].transform, cells)) for q in ranked
+        }
+        ranked.sort(key=lambda q: (-counts[q], q))
+        best = best_hypothesis(
+            [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, self.threshold
+        )
+        if best is None:
+            return None
+        transform = best[0]
+        agree = self._coherent(transform, cells)
+        k = int(np.count_nonzero(agree))
+        if k < needed:
+            return None
+        members = left[with_fringe(transform, pts[left], agree, self.index, self.merge_threshold)]
+        if merge_target(found, pts[members], self.index, self.merge_threshold) is not None:
+            return None  # an existing partition's transform, not a lost one
+        return Found(transform, members, (k - chance) / k, 0.0)
+
+    def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Of ``cells``, those that agree under ``transform`` with at least
+        :data:`SUPPORT_SHARE` of the occupied cells around them agreeing too."""
+        share = _share(
+            transform,
+            self.points,
+            cells,
+            self.index,
+            self.threshold,
+            self.working.shape,
+            SUPPORT_RADIUS,
+            self.around,
+        )
+        moved = transform.apply(self.points[cells])
+        return (share >= SUPPORT_SHARE) & self.index.occupied_agreement(moved, self.threshold)
