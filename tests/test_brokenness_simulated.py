@@ -74,24 +74,20 @@ def test_partitions_that_overlap_in_the_reference_are_found_whole(degree, seed):
     assert max(_transform_errors(result, sim)) < 1.5
 
 
-def test_a_partition_that_lost_cells_to_others_is_found_with_its_neighbourhood(monkeypatch):
+def test_a_partition_that_lost_cells_to_others_is_recovered(monkeypatch):
     """A small partition of this map (4 % of the cells) loses many of its cells to earlier
     partitions, under whose transforms its walls lie on reference walls; what is left is too
-    ambiguous to register alone, and the recursion stops one partition short. With the map
-    around the cells left, the registration places the partition with its true transform
-    (to within 4 cells on average: with so few cells of its own, the partition can slide by
-    a cell or two along the walls it keeps)."""
-    import brokenness.measure.choice as choice
+    ambiguous to register alone, and the recursion stops one partition short. The recovery
+    finds it among the cells no partition explains coherently, with its true transform (to
+    within 4 cells on average: with so few cells of its own, the partition can slide by a
+    cell or two along the walls it keeps)."""
     import brokenness.measure.recovery as recovery
 
-    # the recovery after the recursion finds such partitions too; here it is switched off
-    # (no cell is a suspect) to show what the neighbourhood does on its own
-    monkeypatch.setattr(recovery, "SUPPORT_SHARE", 0.0)
     degree, seed = 4, 1018
     sim = simulate_broken_map(seed=seed, degree=degree)
     assert sim.expected_degree == degree
     result = compute_brokenness(sim.map, sim.reference)
     assert result.degree == degree
     assert max(_transform_errors(result, sim)) < 4.0  # every partition is a true one
-    monkeypatch.setattr(choice, "NEIGHBOURHOOD_CELLS", 0)  # the cells left alone
+    monkeypatch.setattr(recovery, "SUPPORT_SHARE", 0.0)  # no suspect: the recursion alone
     assert compute_brokenness(sim.map, sim.reference).degree == degree - 1

@@ -55,14 +55,3 @@ def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
     shifted = RigidTransform(0.0, 0.0, 10.0)  # none on it now
     assert not mostly_claimed((shifted, agree), points, distance, 2.0)
     assert not mostly_claimed((identity, np.zeros(len(points), bool)), points, distance, 2.0)
-
-
-def test_neighbourhood_adds_the_cells_near_the_selected_ones():
-    from brokenness.measure.views import neighbourhood
-
-    cols = np.array([0, 3, 10, 20, 21], dtype=np.intp)
-    rows = np.zeros(5, dtype=np.intp)
-    selected = np.array([False, False, True, False, False])
-    near = neighbourhood((5, 30), rows, cols, selected, 7)
-    assert near.tolist() == [False, True, True, False, False]  # 7 cells away is in, 10 out
-    assert neighbourhood((5, 30), rows, cols, selected, 0).tolist() == selected.tolist()

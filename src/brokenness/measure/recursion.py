@@ -16,6 +16,12 @@ The recursion, for a map M and a reference R::
         else count L as a new partition
         T = T \\ L;  R' = R' \\ (reference cells matched by L)
     give every cell to the partition whose transform aligns it best (measure.partitions)
+    repeat:                                    (measure.recovery)
+        S = cells of no partition, or whose partition's transform makes few cells around
+            them agree (cells a partition took by coincidence)
+        register S with R; count its best hypothesis as a new partition if the cells of
+        S it explains coherently pass the stopping rule; reassign every cell
+    join partitions that one of their transforms aligns as one piece (measure.partitions)
 
 Stopping rule ("nothing significant is left")
 ---------------------------------------------
@@ -58,24 +64,6 @@ R' (``h_R'``) explains about as many cells: fewer by no more than ``z sigma`` (t
 spread of the stopping rule below, with the same ``z``), a difference that coincidence alone
 could make. Then the part goes where nothing else is yet.
 
-Neighbourhood
--------------
-A small partition can lose many of its cells to earlier ones: where its walls happen to lie
-on walls of the reference under another partition's transform (a corridor shifted along
-itself, a row of equal rooms), the masking gives them away, and what is left of it (its
-cross walls, say) is too little and too ambiguous for the registration to place. So when the
-best hypothesis of a step (with R or with R') is not significant, the step also registers
-the cells left together with the map around them (every occupied cell within
-:data:`~brokenness.measure.choice.NEIGHBOURHOOD_CELLS` of one of them, 0.4 m at 5 cm cells,
-isolated ones included: a wall cut short by the masking is structure) with R: a partition is
-a contiguous stretch of the robot's run, so its lost cells are mostly there. The hypotheses
-are still scored on the cells left only, and the stopping rule is unchanged. On simulated
-maps of degrees 2-5 this gave the exact degree in 4 more of 80 maps (3 more of 80 maps not
-used to choose it) when it was introduced; since the rotation stage ranks the parts' angles
-better (``rotation_whitening``), fewer partitions lose their cells this way, and the gain is
-2 more of 160 maps, at no measurable cost. iFMI only: a random-walk registration costs
-seconds.
-
 We register the untransformed remainder of the map in each step, so the transform found is
 already the whole transform from the original map to the reference (the composition of the
 paper's per-step transforms), without resampling T again and again.
@@ -84,6 +72,19 @@ Because the recursion is greedy, a partition found early also takes cells of lat
 agree with the reference by coincidence (likely in maps of many similar rooms). Once all
 transforms are known, each cell is therefore given to the partition that puts it closest to
 a reference wall (ties keep the greedy choice); partitions left too small are dropped.
+
+Recovery
+--------
+Even so, a small partition can lose most of its cells during the recursion, to partitions
+under whose transforms its walls happen to lie on reference walls; what is left of it is
+then too little to be found, and the degree comes out one short (the usual error of the
+higher degrees). After the recursion, :func:`~brokenness.measure.recovery.recover` looks
+for such partitions among the cells that no partition explains *coherently* (few cells
+around them agree under their partition's transform: coincidences are scattered, a
+partition is a contiguous region), with the same stopping rule; and
+:func:`~brokenness.measure.partitions.consolidate` joins partitions that are one rigid
+piece (a part of a symmetric building first placed at a symmetric twin of its place, and
+found again in its true place). See those modules for the details and the measured gain.
 """
 
 from __future__ import annotations
@@ -103,7 +104,8 @@ from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_m
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
-from .choice import Neighbourhood, choose, mostly_claimed, prefer_unexplained
+from .choice import mostly_claimed, prefer_unexplained
+from .hypotheses import best_hypothesis
 from .partitions import (
     Found,
     assemble,
@@ -443,18 +445,6 @@ def _recurse(
         pool_rest: list[Candidate] = list(carried_rest)
         refined: dict[Any, Any] = {}  # refinements of this step's candidates, for reuse
         enough = max(needed, _THOROUGH_BELOW * n)
-        # ``choose`` adds the hypotheses of the remainder's neighbourhood in the map when the
-        # best of a pool is not significant (see "Neighbourhood"); registered once, if asked.
-        context = Neighbourhood(
-            thorough,
-            whole,
-            working,
-            rows,
-            cols,
-            remaining,
-            uses_free,
-            2 * max_candidates,
-        )
         best_whole = best_rest = None
         # Each reference gets the wider search only while its own best falls short.
         widen_whole = widen_rest = True
@@ -467,7 +457,7 @@ def _recurse(
             if widen_whole:
                 fresh = attempt.candidates(whole, moving_states, limit)
                 pool += fresh
-                best_whole = choose(pool, left_points, index, threshold, needed, refined, context)
+                best_whole = best_hypothesis(pool, left_points, index, threshold, refined)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
             best = best_whole
             rest_ok = True
@@ -486,9 +476,7 @@ def _recurse(
                 if widen_rest:
                     fresh_rest = attempt.candidates(rest, moving_states, limit)
                     pool_rest += fresh_rest
-                    best_rest = choose(
-                        pool_rest, left_points, index, threshold, needed, refined, context
-                    )
+                    best_rest = best_hypothesis(pool_rest, left_points, index, threshold, refined)
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)
                 rest_ok = not widen_rest
                 best = prefer_unexplained(best_whole, best_rest, significance * spread)

@@ -17,7 +17,6 @@ from ..masking import manhattan_distance_map
 
 __all__ = [
     "isolated_cells",
-    "neighbourhood",
     "reference_states",
     "remainder_states",
     "walls_connected",
@@ -64,38 +63,6 @@ def remainder_states(
     if drop_isolated:
         out[left & isolated_cells(left)] = UNKNOWN
     return out
-
-
-def neighbourhood(
-    shape: tuple[int, int],
-    rows: NDArray[np.intp],
-    cols: NDArray[np.intp],
-    selected: NDArray[np.bool_],
-    radius: int,
-) -> NDArray[np.bool_]:
-    """The cells (of ``rows``, ``cols``) within ``radius`` cells of a ``selected`` one.
-
-    Parameters
-    ----------
-    shape : (int, int)
-        Shape of the map grid.
-    rows, cols : ndarray of intp
-        Grid positions of the map's occupied cells.
-    selected : ndarray of bool
-        Which of those cells are the seed.
-    radius : int
-        Euclidean radius in cells (a disc-shaped dilation).
-
-    Returns
-    -------
-    ndarray of bool
-        ``selected`` plus every cell of ``rows``, ``cols`` near it.
-    """
-    seed = np.zeros(shape, dtype=np.uint8)
-    seed[rows[selected], cols[selected]] = 1
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-    near = cv2.dilate(seed, disc)
-    return selected | (near[rows, cols] > 0)
 
 
 def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:

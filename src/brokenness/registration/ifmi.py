@@ -462,8 +462,9 @@ class IFMIRegistrar:
     def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8]) -> _Memo:
         """The analysis of ``moving_states`` against ``ref``, remembered for later calls.
 
-        The last :data:`_MEMOS` moving maps are remembered (the recursion alternates between
-        what is left of the map and that together with its neighbourhood).
+        The last :data:`_MEMOS` moving maps are remembered: a step of the recursion asks for
+        the hypotheses of what is left of the map with the usual and the wider search, which
+        share the analysis, and the recovery registers two sets of suspect cells in turn.
         """
         states = np.asarray(moving_states)
         key = self._memo_key()
