@@ -34,10 +34,10 @@ the recursion:
    smallest partition's cells when every cell goes to its best partition again;
 5. repeats until nothing new is found (or ``max_partitions`` is reached).
 
-On the 160 simulated maps of degrees 2-5 of the benchmarks, the recovery (with
-:func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 144 maps
+On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
+:func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 145 maps
 instead of 136, and on the 3 x 2 benchmark map of building 31 it finds the sixth partition
-at every angle tried (10-25 degrees) where the recursion alone finds five.
+at every angle tried (10-25 degrees), where the recursion alone finds five.
 """
 
 from __future__ import annotations

@@ -320,8 +320,9 @@ def compute_brokenness(
             max_candidates=2 * max_candidates,
             uses_free=uses_free,
             drop_isolated=walls_connected(index.reference),
-        )
-    found = reassign(found, points, index, threshold, min_cells)
+        )  # every cell given to its best partition, as reassign does
+    else:  # the random walk costs seconds a registration: no second search
+        found = reassign(found, points, index, threshold, min_cells)
     found = consolidate(found, points, index, threshold, merge_threshold, min_cells)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
