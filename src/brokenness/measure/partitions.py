@@ -16,9 +16,9 @@ from ..transform import RigidTransform
 from .result import NOT_OCCUPIED, UNASSIGNED, Partition
 
 __all__ = [
+    "JOIN_SHARE",
     "Found",
     "assemble",
-    "JOIN_SHARE",
     "consolidate",
     "labels_in_original_grid",
     "merge_target",
@@ -204,6 +204,10 @@ def labels_in_original_grid(
     return out
 
 
+#: Share of the cells of two partitions that one transform must align to join them.
+JOIN_SHARE = 0.8
+
+
 def consolidate(
     found: list[Found],
     points: NDArray[np.float64],
@@ -237,10 +241,6 @@ def consolidate(
         rest = [f for q, f in enumerate(found) if q not in (i, j)]
         found = reassign([*rest, partition], points, index, threshold, min_cells)
     return found
-
-
-#: Share of the cells of two partitions that one transform must align to join them.
-JOIN_SHARE = 0.8
 
 
 def _joined(
