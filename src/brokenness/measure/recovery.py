@@ -112,6 +112,19 @@ def agreement_support(
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
     around = _window_counts(rows, cols, everything, everything, shape, radius)
+    return _support(found, points, index, threshold, shape, radius, around)
+
+
+def _support(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    radius: int,
+    around: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`agreement_support`, with ``around`` (occupied cells around each) given."""
     support = np.zeros(points.shape[0])
     for f in found:
         if f.members.size == 0:
@@ -135,9 +148,7 @@ def _share(
     """At the cells ``at``, the share of the occupied cells around that agree under
     ``transform`` (``around``: how many occupied cells there are around each cell)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
-    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
-    near = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+    near = _inside(rows, cols, _box(rows, cols, at, shape, radius))  # only those can count
     near[near] = index.occupied_agreement(transform.apply(points[near]), threshold)
     return _window_counts(rows, cols, near, at, shape, radius) / around[at]
 
@@ -153,9 +164,8 @@ def _window_counts(
     """At the cells ``at``, how many ``which`` cells lie in the square window around them.
 
     Only the box around ``at`` is counted (one integer box filter)."""
-    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
-    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
-    inside = which & (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+    r0, r1, c0, c1 = box = _box(rows, cols, at, shape, radius)
+    inside = which & _inside(rows, cols, box)
     grid = np.zeros((r1 - r0, c1 - c0), np.uint8)
     grid[rows[inside] - r0, cols[inside] - c0] = 1
     side = 2 * radius + 1
@@ -163,6 +173,26 @@ def _window_counts(
         grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
     )
     return counts[rows[at] - r0, cols[at] - c0].astype(np.float64)
+
+
+def _box(
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    at: NDArray[np.bool_],
+    shape: tuple[int, int],
+    radius: int,
+) -> tuple[int, int, int, int]:
+    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells ``at``."""
+    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
+    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
+    return r0, r1, c0, c1
+
+
+def _inside(
+    rows: NDArray[np.intp], cols: NDArray[np.intp], box: tuple[int, int, int, int]
+) -> NDArray[np.bool_]:
+    r0, r1, c0, c1 = box
+    return (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
 
 
 def _new_ones(
@@ -243,6 +273,7 @@ def recover(
         registrar,
         reference,
         around,
+        index.chance_agreement(threshold),
         threshold=threshold,
         min_cells=min_cells,
         significance=significance,
@@ -254,7 +285,8 @@ def recover(
     found = reassign(found, points, index, threshold, min_cells)
     while found and len(found) < max_partitions:
         t0 = time.perf_counter()
-        suspect = agreement_support(found, points, index, threshold, working.shape) < SUPPORT_SHARE
+        support = _support(found, points, index, threshold, working.shape, SUPPORT_RADIUS, around)
+        suspect = support < SUPPORT_SHARE
         if np.count_nonzero(suspect) < min_cells:
             break
         # first the regions of suspects (a lost partition is a region of them; the borders
@@ -293,6 +325,7 @@ class _Search:
     registrar: Registrar
     reference: Any
     around: NDArray[np.float64]  # occupied cells in the window around each cell
+    p0: float  # chance agreement (the stopping rule's)
     threshold: float
     min_cells: int
     significance: float
@@ -306,9 +339,9 @@ class _Search:
         n = int(np.count_nonzero(cells))
         if n < self.min_cells:
             return None
-        p0 = self.index.chance_agreement(self.threshold)
-        chance = n * p0
-        needed = max(self.min_cells, chance + self.significance * math.sqrt(chance * (1.0 - p0)))
+        chance = n * self.p0
+        spread = math.sqrt(chance * (1.0 - self.p0))
+        needed = max(self.min_cells, chance + self.significance * spread)
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
         states = remainder_states(

@@ -287,6 +287,7 @@ def compute_brokenness(
     n_total = points.shape[0]
     min_cells = max(min_partition_cells, math.ceil(min_partition_fraction * n_total))
     uses_free = bool(getattr(registrar, "uses_free_space", True))
+    drop_isolated = walls_connected(index.reference)
     whole = registrar.prepare_reference(
         reference_states(index.reference, index.reference.occupied, uses_free)
     )
@@ -303,6 +304,8 @@ def compute_brokenness(
         merge_threshold=merge_threshold,
         max_partitions=max_partitions,
         max_candidates=max_candidates,
+        uses_free=uses_free,
+        drop_isolated=drop_isolated,
     )
     if thorough is not None:
         found = recover(
@@ -319,7 +322,7 @@ def compute_brokenness(
             max_partitions=max_partitions,
             max_candidates=2 * max_candidates,
             uses_free=uses_free,
-            drop_isolated=walls_connected(index.reference),
+            drop_isolated=drop_isolated,
         )  # every cell given to its best partition, as reassign does
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, threshold, min_cells)
@@ -405,14 +408,17 @@ def _recurse(
     merge_threshold: float,
     max_partitions: int,
     max_candidates: int,
+    uses_free: bool,
+    drop_isolated: bool,
 ) -> list[Found]:
-    """Algorithm 1: the partitions in the order found (members index ``points``)."""
+    """Algorithm 1: the partitions in the order found (members index ``points``).
+
+    ``uses_free``: the registration uses free space; ``drop_isolated``: isolated occupied
+    cells are hidden from it (the reference's walls are connected lines)."""
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
     reference_occupied = index.reference.occupied
     p0 = index.chance_agreement(threshold)
-    uses_free = bool(getattr(registrar, "uses_free_space", True))
-    drop_isolated = walls_connected(index.reference)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[Found] = []
     carried: list[Candidate] = []  # the previous step's hypotheses, from R and R'
