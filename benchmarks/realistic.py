@@ -288,14 +288,43 @@ def _clearly_off(
     return worst
 
 
-def generate(case: Case, cache: Path = CACHE) -> Path | None:
-    """Write the files of ``case`` (when missing); its folder, or None if no draw fitted."""
-    folder = cache / case.name
-    truth_path = folder / "truth.json"
-    if truth_path.is_file():
-        old = json.loads(truth_path.read_text())
-        if old.get("generator_version") == GENERATOR_VERSION and old.get("case") == asdict(case):
-            return folder if old.get("ok", True) else None
+@dataclass(frozen=True, eq=False)
+class Drawn:
+    """A case drawn in memory (before its files are written).
+
+    Attributes
+    ----------
+    case : Case
+    map, reference : OccupancyMap
+    labels : ndarray of int16
+        The true partition of each occupied map cell, -1 elsewhere.
+    errors : list of ndarray
+        World error ``E_j`` (3x3) of each partition.
+    frame : ndarray
+        The own frame (3x3 world matrix) the map is drawn in.
+    info : dict
+        JSON-ready: attempt, rejected draws, frame, bumps, shares.
+    """
+
+    case: Case
+    map: OccupancyMap
+    reference: OccupancyMap
+    labels: NDArray[np.int16]
+    errors: list[NDArray[np.float64]]
+    frame: NDArray[np.float64]
+    info: dict[str, Any]
+
+    def truths(
+        self, map_: OccupancyMap | None = None, reference: OccupancyMap | None = None
+    ) -> list[RigidTransform]:
+        """Each partition's true transform, map cell -> reference cell (of these maps)."""
+        m = self.map if map_ is None else map_
+        r = self.reference if reference is None else reference
+        return [frame_truth(m, r, e, self.frame) for e in self.errors]
+
+
+def draw_case(case: Case) -> Drawn | None:
+    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted."""
     prep = _prepare(case.source, case.seed)
     ref_run, index = _true_reference(case.source, case.seed, case.reference_resolution)
     run = prep.run
@@ -336,40 +365,56 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
         if shares.min() < MIN_SHARE:
             why.append(f"{attempt}: a partition holds {100 * shares.min():.1f} % in the map")
             continue
-        break
-    else:
-        folder.mkdir(parents=True, exist_ok=True)
+        reference = ref_run
+        if case.reference == "plan":
+            assert prep.building is not None
+            reference = plan_map(prep.building, case.reference_resolution)
+        info = {
+            "attempt": attempt,
+            "rejected": why,
+            "frame": {"rotation_deg": math.degrees(phi), "translation_m": [tx, ty]},
+            "bumps": [b.to_dict() for b in judged],
+            "occupied_cells": int(counts.sum()),
+            "cells": counts.tolist(),
+            "shares": shares.tolist(),
+        }
+        return Drawn(case, m, reference, labels, list(bp.errors), frame, info)
+    return None
+
+
+def generate(case: Case, cache: Path = CACHE) -> Path | None:
+    """Write the files of ``case`` (when missing); its folder, or None if no draw fitted."""
+    folder = cache / case.name
+    truth_path = folder / "truth.json"
+    if truth_path.is_file():
+        old = json.loads(truth_path.read_text())
+        if old.get("generator_version") == GENERATOR_VERSION and old.get("case") == asdict(case):
+            return folder if old.get("ok", True) else None
+    drawn = draw_case(case)
+    folder.mkdir(parents=True, exist_ok=True)
+    if drawn is None:
         truth_path.write_text(
             json.dumps(
-                {
-                    "generator_version": GENERATOR_VERSION,
-                    "case": asdict(case),
-                    "ok": False,
-                    "attempts": why,
-                },
+                {"generator_version": GENERATOR_VERSION, "case": asdict(case), "ok": False},
                 indent=1,
             )
         )
         return None
-    reference = ref_run
-    if case.reference == "plan":
-        assert prep.building is not None
-        reference = plan_map(prep.building, case.reference_resolution)
-    folder.mkdir(parents=True, exist_ok=True)
+    m, reference, info = drawn.map, drawn.reference, drawn.info
     save_map(m, folder / "map.yaml")
     save_map(reference, folder / "reference.yaml")
     loaded_map, loaded_ref = load_map(folder / "map.yaml"), load_map(folder / "reference.yaml")
-    truths = [frame_truth(loaded_map, loaded_ref, e, frame) for e in bp.errors]
-    np.save(folder / "labels.npy", labels, allow_pickle=False)
+    truths = drawn.truths(loaded_map, loaded_ref)
+    np.save(folder / "labels.npy", drawn.labels, allow_pickle=False)
     truth = {
         "generator_version": GENERATOR_VERSION,
         "case": asdict(case),
         "ok": True,
         "expected_degree": case.degree,
-        "attempt": attempt,
-        "rejected": why,
-        "frame": {"rotation_deg": math.degrees(phi), "translation_m": [tx, ty]},
-        "bumps": [b.to_dict() for b in judged],
+        "attempt": info["attempt"],
+        "rejected": info["rejected"],
+        "frame": info["frame"],
+        "bumps": info["bumps"],
         "map": {"shape": list(m.shape), "resolution": m.resolution, "origin": list(m.origin)},
         "reference": {
             "kind": case.reference,
@@ -377,12 +422,12 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
             "resolution": reference.resolution,
             "origin": list(reference.origin or ()),
         },
-        "occupied_cells": int(counts.sum()),
+        "occupied_cells": info["occupied_cells"],
         "partitions": [
             {
                 "index": j,
-                "cells": int(counts[j]),
-                "share": float(shares[j]),
+                "cells": info["cells"][j],
+                "share": info["shares"][j],
                 "transform": t.to_dict(),
                 "matrix": t.matrix.tolist(),
             }
