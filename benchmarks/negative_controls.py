@@ -198,8 +198,10 @@ def main(argv: list[str] | None = None) -> int:
         f"{s['same_place_measured']} of {s['same_place']}; wall {s['wall_seconds']:.0f} s "
         f"on {args.workers} worker(s)"
     )
+    print("\n| map vs reference | pairs | false claims |\n|---|---|---|")
     for kind, v in sorted(s["false_claims_by_kind"].items()):
-        print(f"  {kind}: {v['false']} false of {v['pairs']}")
+        print(f"| {kind} | {v['pairs']} | {v['false']} |")
+    print(f"| all | {s['controls']} | {s['false_claims']} |")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(
         json.dumps({"summary": s, "rows": ordered}, indent=1, allow_nan=False) + "\n"

@@ -533,6 +533,28 @@ def tables(rows: list[dict[str, Any]]) -> str:
                 f"| {sum(not r['measured'] for r in sel)} "
                 f"| {np.median([r['seconds'] for r in sel]):.2f} |"
             )
+    done = [r for r in rows if "measured" in r]
+    if done:
+        out += [
+            "\nper source (all degrees) and per case kind:\n",
+            "| source | cases | exact | all partitions true | not measured | median s |",
+            "|---|---|---|---|---|---|",
+        ]
+        groups: dict[str, list[dict[str, Any]]] = {}
+        for r in done:
+            groups.setdefault(r["source"], []).append(r)
+        for r in done:
+            if r["map_resolution"] != r["reference_resolution"]:
+                groups.setdefault("(map and reference resolutions differ)", []).append(r)
+            if r["reference"] == "plan":
+                groups.setdefault("(plan as reference)", []).append(r)
+        for name, sel in groups.items():
+            out.append(
+                f"| {name} | {len(sel)} | {sum(r['exact'] for r in sel)} "
+                f"| {sum(r['all_true'] for r in sel)} "
+                f"| {sum(not r['measured'] for r in sel)} "
+                f"| {np.median([r['seconds'] for r in sel]):.2f} |"
+            )
     errors = [r for r in rows if "error" in r]
     if errors:
         out.append(
