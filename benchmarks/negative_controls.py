@@ -76,6 +76,7 @@ def run_pair(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
         degree=res.degree,
         partitions=len(res.partitions),
         largest_share=float(res.largest_fraction),
+        contradiction=res.contradiction,
         unassigned_share=float(res.unassigned_fraction),
         reason=res.reason,
         seconds=time.perf_counter() - t0,

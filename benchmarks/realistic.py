@@ -499,10 +499,15 @@ def evaluate(folder: Path) -> dict[str, Any]:
         measured=bool(res.measured),
         degree=res.degree,
         reason=res.reason,
+        contradiction=res.contradiction,
         exact=res.degree == truth["expected_degree"],
         all_true=bool(res.measured) and all_partitions_true(found, truths, labels),
+        partitions_true=all_partitions_true(found, truths, labels),
         unassigned_share=float(res.unassigned_fraction),
-        partitions=[p.transform.to_dict() | {"cells": p.cells} for p in res.partitions],
+        partitions=[
+            p.transform.to_dict() | {"cells": p.cells, "contradiction": p.contradiction}
+            for p in res.partitions
+        ],
     )
     return row
 

@@ -111,6 +111,7 @@ from .partitions import (
     Found,
     assemble,
     consolidate,
+    drop_redundant,
     labels_in_original_grid,
     merge_target,
     reassign,
@@ -334,6 +335,7 @@ def compute_brokenness(
         found = reassign(found, points, index, threshold, min_cells)
     found = consolidate(found, points, index, threshold, merge_threshold, min_cells)
     found = drop_incoherent(found, points, index, threshold, working.shape, min_cells)
+    found = drop_redundant(found, points, index, threshold, min_cells)
     map_ratio, ratios = _judge(found, points, working, index, threshold)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
