@@ -26,7 +26,14 @@ from .errors import (
 from .grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from .io import MapWarning, load_map, resample_to_resolution, save_map
 from .masking import picture_distance
-from .measure import NOT_OCCUPIED, UNASSIGNED, BrokennessResult, Partition, compute_brokenness
+from .measure import (
+    NOT_OCCUPIED,
+    UNASSIGNED,
+    BrokennessOptions,
+    BrokennessResult,
+    Partition,
+    compute_brokenness,
+)
 from .registration import Registration, register
 from .simulation import SimulatedMap, save_simulation, simulate_broken_map
 from .transform import RigidTransform
@@ -38,6 +45,7 @@ __all__ = [
     "UNASSIGNED",
     "UNKNOWN",
     "BrokennessError",
+    "BrokennessOptions",
     "BrokennessResult",
     "MapError",
     "MapFormatError",

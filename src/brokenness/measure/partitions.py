@@ -13,6 +13,7 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
 from ..masking.distance import lookup_distance
 from ..transform import RigidTransform
+from .options import Settings
 from .result import NOT_OCCUPIED, UNASSIGNED, Partition
 
 __all__ = [
@@ -213,9 +214,7 @@ def consolidate(
     found: list[Found],
     points: NDArray[np.float64],
     index: ReferenceIndex,
-    threshold: float,
-    merge_threshold: float,
-    min_cells: int,
+    settings: Settings,
 ) -> list[Found]:
     """Join partitions that are one rigid piece under one of their two transforms.
 
@@ -231,6 +230,7 @@ def consolidate(
     alone). The joined partition keeps that transform (the one that makes more cells agree),
     and the cells are reassigned.
     """
+    threshold, merge_threshold, min_cells = settings.threshold, settings.loose, settings.min_cells
     while len(found) > 1:
         for j in sorted(range(len(found)), key=lambda q: (found[q].members.size, q)):
             joined = _joined(found, j, points, index, threshold, merge_threshold)
@@ -276,8 +276,7 @@ def drop_redundant(
     found: list[Found],
     points: NDArray[np.float64],
     index: ReferenceIndex,
-    threshold: float,
-    min_cells: int,
+    settings: Settings,
 ) -> list[Found]:
     """Drop shifted copies: partitions at the rotation of another that explain fewer than
     ``min_cells`` cells it does not.
@@ -291,6 +290,7 @@ def drop_redundant(
     partition of the stopping rule), and reassigns the cells. A partition turned against
     every other is not judged here: its transform is its own evidence.
     """
+    threshold, min_cells = settings.threshold, settings.min_cells
     while len(found) > 1:
         exclusive: list[int | None] = []
         for j, f in enumerate(found):

@@ -42,7 +42,6 @@ at every angle tried (10-25 degrees), where the recursion alone finds five.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -56,6 +55,7 @@ from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .hypotheses import best_hypothesis
+from .options import Settings
 from .partitions import Found, merge_target, reassign, with_fringe
 from .views import remainder_states
 
@@ -126,19 +126,19 @@ def drop_incoherent(
     found: list[Found],
     points: NDArray[np.float64],
     index: ReferenceIndex,
-    threshold: float,
+    settings: Settings,
     shape: tuple[int, int],
-    min_cells: int,
 ) -> list[Found]:
     """The partitions that are coherent regions of the map, cells reassigned.
 
-    A partition must hold at least ``min_cells`` cells with a support of at least
+    A partition must hold at least ``settings.min_cells`` cells with a support of at least
     :data:`SUPPORT_SHARE` (:func:`agreement_support`): the test a partition found by the
     recovery passes, applied to every partition. A set of scattered cells that one transform
     happens to put on reference walls (common where walls are long and straight) has little
     support; it is not a part of the map that is "off", and its cells go to the partitions
     that align them best. The least coherent partition is dropped first, one at a time.
     """
+    threshold, min_cells = settings.threshold, settings.min_cells
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
     around = _window_counts(rows, cols, everything, everything, shape, SUPPORT_RADIUS)
@@ -260,15 +260,7 @@ def recover(
     index: ReferenceIndex,
     registrar: Registrar,
     reference: Any,
-    *,
-    threshold: float,
-    min_cells: int,
-    significance: float,
-    merge_threshold: float,
-    max_partitions: int,
-    max_candidates: int,
-    uses_free: bool,
-    drop_isolated: bool,
+    settings: Settings,
 ) -> list[Found]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
@@ -287,13 +279,8 @@ def recover(
     registrar : Registrar
         The registration (the recursion's wider search), and ``reference`` its prepared whole
         reference.
-    threshold, min_cells, significance, merge_threshold, max_partitions
-        As in the recursion: agreement threshold, smallest partition, ``z`` of the chance
-        test, loose threshold of the merge test, largest number of partitions.
-    max_candidates : int
-        Registration hypotheses asked for per round.
-    uses_free, drop_isolated : bool
-        How the registration sees the suspect cells (as for the recursion's remainder).
+    settings : Settings
+        As for the recursion; each round asks for twice its ``max_candidates`` hypotheses.
 
     Returns
     -------
@@ -304,6 +291,7 @@ def recover(
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
     around = _window_counts(rows, cols, everything, everything, working.shape, SUPPORT_RADIUS)
+    threshold, min_cells = settings.threshold, settings.min_cells
     search = _Search(
         points,
         working,
@@ -312,16 +300,10 @@ def recover(
         reference,
         around,
         index.chance_agreement(threshold),
-        threshold=threshold,
-        min_cells=min_cells,
-        significance=significance,
-        merge_threshold=merge_threshold,
-        max_candidates=max_candidates,
-        uses_free=uses_free,
-        drop_isolated=drop_isolated,
+        settings,
     )
     found = reassign(found, points, index, threshold, min_cells)
-    while found and len(found) < max_partitions:
+    while found and len(found) < settings.max_partitions:
         t0 = time.perf_counter()
         support = _support(found, points, index, threshold, working.shape, SUPPORT_RADIUS, around)
         suspect = support < SUPPORT_SHARE
@@ -364,35 +346,28 @@ class _Search:
     reference: Any
     around: NDArray[np.float64]  # occupied cells in the window around each cell
     p0: float  # chance agreement (the stopping rule's)
-    threshold: float
-    min_cells: int
-    significance: float
-    merge_threshold: float
-    max_candidates: int
-    uses_free: bool
-    drop_isolated: bool
+    settings: Settings
 
     def lost_partition(self, found: list[Found], cells: NDArray[np.bool_]) -> Found | None:
         """The partition that ``cells`` hide, if its hypothesis passes every test."""
+        settings = self.settings
         n = int(np.count_nonzero(cells))
-        if n < self.min_cells:
+        if n < settings.min_cells:
             return None
-        chance = n * self.p0
-        spread = math.sqrt(chance * (1.0 - self.p0))
-        needed = max(self.min_cells, chance + self.significance * spread)
+        chance, _, needed = settings.needed(n, self.p0)
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
         states = remainder_states(
-            self.working, rows, cols, cells, self.uses_free, self.drop_isolated
+            self.working, rows, cols, cells, settings.uses_free, settings.drop_isolated
         )
-        if np.count_nonzero(states == OCCUPIED) < self.min_cells:
+        if np.count_nonzero(states == OCCUPIED) < settings.min_cells:
             return None
         left = np.flatnonzero(cells)
         candidates = _new_ones(
-            self.registrar.candidates(self.reference, states, self.max_candidates),
+            self.registrar.candidates(self.reference, states, 2 * settings.max_candidates),
             found,
             pts[left],
-            self.merge_threshold,
+            settings.loose,
         )
         if not candidates:
             return None
@@ -401,7 +376,7 @@ class _Search:
         # counted for the best few candidates by plain agreement
         plain = [
             np.count_nonzero(
-                self.index.occupied_agreement(c.transform.apply(pts[left]), self.threshold)
+                self.index.occupied_agreement(c.transform.apply(pts[left]), settings.threshold)
             )
             for c in candidates
         ]
@@ -411,7 +386,7 @@ class _Search:
         }
         ranked.sort(key=lambda q: (-counts[q], q))
         best = best_hypothesis(
-            [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, self.threshold
+            [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, settings.threshold
         )
         if best is None:
             return None
@@ -420,8 +395,8 @@ class _Search:
         k = int(np.count_nonzero(agree))
         if k < needed:
             return None
-        members = left[with_fringe(transform, pts[left], agree, self.index, self.merge_threshold)]
-        if merge_target(found, pts[members], self.index, self.merge_threshold) is not None:
+        members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
+        if merge_target(found, pts[members], self.index, settings.loose) is not None:
             return None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0)
 
@@ -433,10 +408,11 @@ class _Search:
             self.points,
             cells,
             self.index,
-            self.threshold,
+            self.settings.threshold,
             self.working.shape,
             SUPPORT_RADIUS,
             self.around,
         )
         moved = transform.apply(self.points[cells])
-        return (share >= SUPPORT_SHARE) & self.index.occupied_agreement(moved, self.threshold)
+        agree = self.index.occupied_agreement(moved, self.settings.threshold)
+        return (share >= SUPPORT_SHARE) & agree

@@ -93,6 +93,7 @@ import math
 import os
 import time
 import warnings
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -107,6 +108,7 @@ from ..transform import RigidTransform
 from .choice import mostly_claimed, prefer_unexplained
 from .evidence import MAP_RATIO, contradiction
 from .hypotheses import best_hypothesis
+from .options import BrokennessOptions, Settings
 from .partitions import (
     Found,
     assemble,
@@ -153,44 +155,11 @@ def _as_map(value: MapLike, role: str) -> OccupancyMap:
         raise MapError(f"{role}: {exc}") from None
 
 
-def _check_options(
-    threshold: float,
-    min_partition_fraction: float,
-    min_partition_cells: int,
-    significance: float,
-    merge_threshold: float,
-    max_partitions: int,
-) -> None:
-    if not (math.isfinite(threshold) and threshold > 0):
-        raise ParameterError(f"threshold must be a positive number of cells, got {threshold!r}")
-    if not (0.0 <= min_partition_fraction < 1.0):
-        raise ParameterError(
-            f"min_partition_fraction must be in [0, 1), got {min_partition_fraction!r}"
-        )
-    if min_partition_cells < 1:
-        raise ParameterError(f"min_partition_cells must be >= 1, got {min_partition_cells!r}")
-    if not (math.isfinite(significance) and significance >= 0):
-        raise ParameterError(f"significance must be >= 0, got {significance!r}")
-    if not (math.isfinite(merge_threshold) and merge_threshold >= threshold):
-        raise ParameterError("merge_threshold must be at least threshold")
-    if max_partitions < 1:
-        raise ParameterError(f"max_partitions must be >= 1, got {max_partitions!r}")
-
-
 def compute_brokenness(
     map: MapLike,  # noqa: A002 - the paper's name
     reference: MapLike,
-    *,
-    method: str = "ifmi",
-    threshold: float = 2.0,
-    min_partition_fraction: float = 0.02,
-    min_partition_cells: int = 30,
-    significance: float = 6.0,
-    merge_threshold: float | None = None,
-    max_partitions: int = 16,
-    max_candidates: int = 6,
-    seed: int | None = None,
-    registration_options: dict[str, Any] | None = None,
+    options: BrokennessOptions | None = None,
+    **overrides: Any,
 ) -> BrokennessResult:
     """Degree of brokenness of ``map`` with respect to ``reference`` (Birk 2010, Algorithm 1).
 
@@ -209,33 +178,12 @@ def compute_brokenness(
     reference : OccupancyMap, array_like or path
         The reference (ground truth). If both maps know their resolution and the two differ,
         the map is resampled to the reference's resolution first.
-    method : {"ifmi", "random-walk"}
-        Registration used in each step: the deterministic improved Fourier-Mellin method of the
-        paper, or the stochastic map-merging baseline (Birk & Carpin 2006).
-    threshold : float
-        ``c`` of Psi_2, in reference cells: a moved map cell agrees with the reference when
-        the Manhattan distance to the nearest occupied reference cell is at most ``c``.
-        Default 2 (e.g. 10 cm at 5 cm per cell), enough for wall thickness and jitter.
-    min_partition_fraction : float
-        Smallest partition, as a share of the map's occupied cells (default 2 %).
-    min_partition_cells : int
-        Smallest partition, in cells (default 30).
-    significance : float
-        ``z`` of the chance test of the stopping rule (default 6).
-    merge_threshold : float, optional
-        Loose agreement used to merge a new set into an earlier partition (default
-        ``2 * threshold``): if at least half of the new set agrees within this distance under
-        an earlier partition's transform, it belongs to that partition.
-    max_partitions : int
-        Upper bound on the number of partitions (default 16): the recursion always ends.
-    max_candidates : int
-        Registration hypotheses examined per step (default 6).
-    seed : int, optional
-        Seed of the random-walk registration (iFMI uses no randomness).
-    registration_options : dict, optional
-        Keyword options of the registration method (see :func:`brokenness.register`). For
-        iFMI the recursion defaults to ``rotation_peaks=3, peak_ratio=0.3, translation_peaks=3``
-        (a remainder mixes partitions, so its spectra have more than one peak worth trying).
+    options : BrokennessOptions, optional
+        Every option of the measure in one object (defaults: ``BrokennessOptions()``; its
+        docstring describes each).
+    **overrides
+        Options by name (``threshold=3``, ``method="random-walk"``...), applied on top of
+        ``options``: any field of :class:`BrokennessOptions`.
 
     Returns
     -------
@@ -266,16 +214,7 @@ def compute_brokenness(
     0
     """
     started = time.perf_counter()
-    if merge_threshold is None:
-        merge_threshold = 2.0 * threshold
-    _check_options(
-        threshold,
-        min_partition_fraction,
-        min_partition_cells,
-        significance,
-        merge_threshold,
-        max_partitions,
-    )
+    opts = _options(options, overrides)
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
     if original.n_occupied == 0:
@@ -283,60 +222,30 @@ def compute_brokenness(
     index = ReferenceIndex.build(ref)  # raises for an empty reference
 
     working, to_working = _common_resolution(original, ref)
-    options: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
-    options.update(registration_options or {})
-    registrar = make_registrar(method, seed=seed, **options)
+    method = opts.method
+    kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
+    kwargs.update(opts.registration_kwargs)
+    registrar = make_registrar(method, seed=opts.seed, **kwargs)
     thorough = None
     if method == "ifmi":
-        thorough = make_registrar(method, **{**options, **_IFMI_THOROUGH_OPTIONS})
+        thorough = make_registrar(method, **{**kwargs, **_IFMI_THOROUGH_OPTIONS})
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
-    n_total = points.shape[0]
-    min_cells = max(min_partition_cells, math.ceil(min_partition_fraction * n_total))
     uses_free = bool(getattr(registrar, "uses_free_space", True))
-    drop_isolated = walls_connected(index.reference)
+    settings = Settings.of(opts, points.shape[0], uses_free, walls_connected(index.reference))
     whole = registrar.prepare_reference(
         reference_states(index.reference, index.reference.occupied, uses_free)
     )
-    found = _recurse(
-        working,
-        points,
-        index,
-        registrar,
-        thorough,
-        whole,
-        threshold=threshold,
-        min_cells=min_cells,
-        significance=significance,
-        merge_threshold=merge_threshold,
-        max_partitions=max_partitions,
-        max_candidates=max_candidates,
-        uses_free=uses_free,
-        drop_isolated=drop_isolated,
-    )
-    if thorough is not None:
-        found = recover(
-            found,
-            points,
-            working,
-            index,
-            thorough,
-            whole,
-            threshold=threshold,
-            min_cells=min_cells,
-            significance=significance,
-            merge_threshold=merge_threshold,
-            max_partitions=max_partitions,
-            max_candidates=2 * max_candidates,
-            uses_free=uses_free,
-            drop_isolated=drop_isolated,
-        )  # every cell given to its best partition, as reassign does
+    # Algorithm 1, then the tests of what it found, in this order
+    found = _recurse(working, points, index, registrar, thorough, whole, settings)
+    if thorough is not None:  # every cell given to its best partition, as reassign does
+        found = recover(found, points, working, index, thorough, whole, settings)
     else:  # the random walk costs seconds a registration: no second search
-        found = reassign(found, points, index, threshold, min_cells)
-    found = consolidate(found, points, index, threshold, merge_threshold, min_cells)
-    found = drop_incoherent(found, points, index, threshold, working.shape, min_cells)
-    found = drop_redundant(found, points, index, threshold, min_cells)
-    map_ratio, ratios = _judge(found, points, working, index, threshold)
+        found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    found = consolidate(found, points, index, settings)
+    found = drop_incoherent(found, points, index, settings, working.shape)
+    found = drop_redundant(found, points, index, settings)
+    map_ratio, ratios = _judge(found, points, working, index, settings.threshold)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
     )
@@ -359,18 +268,7 @@ def compute_brokenness(
         )
         for p in found_partitions
     )
-    parameters = {
-        "threshold": threshold,
-        "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells,
-        "significance": significance,
-        "merge_threshold": merge_threshold,
-        "max_partitions": max_partitions,
-        "max_candidates": max_candidates,
-        "seed": seed,
-        "registration_options": dict(registration_options or {}),
-        "working_resolution": working.resolution,
-    }
+    parameters = opts.to_dict() | {"working_resolution": working.resolution}
     reason = None
     if not partitions:
         reason = (
@@ -407,10 +305,7 @@ def _region_candidates(
     remaining: NDArray[np.bool_],
     registrar: Registrar,
     whole: Any,
-    min_cells: int,
-    limit: int,
-    uses_free: bool,
-    drop_isolated: bool,
+    settings: Settings,
 ) -> list[Candidate]:
     """Hypotheses from regions of the remainder: the tiles of 2 x 2 and 3 x 3 grids over its
     box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped)."""
@@ -425,10 +320,12 @@ def _region_candidates(
         for i in range(g):
             for j in range(g):
                 cells = remaining & (tile_row == i) & (tile_col == j)
-                if np.count_nonzero(cells) < min_cells:
+                if np.count_nonzero(cells) < settings.min_cells:
                     continue
-                states = remainder_states(working, rows, cols, cells, uses_free, drop_isolated)
-                out += registrar.candidates(whole, states, limit)
+                states = remainder_states(
+                    working, rows, cols, cells, settings.uses_free, settings.drop_isolated
+                )
+                out += registrar.candidates(whole, states, settings.max_candidates)
     return out
 
 
@@ -446,6 +343,20 @@ def _judge(
     evidence = contradiction(found, points, working, index, threshold)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     return evidence.ratio(), [evidence.ratio(i) for i in order]
+
+
+def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> BrokennessOptions:
+    """``options`` with ``overrides`` applied (unknown names are a :class:`ParameterError`)."""
+    base = BrokennessOptions() if options is None else options
+    if not isinstance(base, BrokennessOptions):
+        raise ParameterError("options must be a BrokennessOptions (or give options by name)")
+    known = {f.name for f in fields(BrokennessOptions)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ParameterError(f"unknown option {unknown[0]!r} (options: {', '.join(sorted(known))})")
+    if overrides.get("registration_options", ()) is None:
+        overrides = {**overrides, "registration_options": ()}
+    return replace(base, **overrides) if overrides else base
 
 
 def _common_resolution(m: OccupancyMap, ref: OccupancyMap) -> tuple[OccupancyMap, RigidTransform]:
@@ -470,20 +381,13 @@ def _recurse(
     registrar: Registrar,
     thorough: Registrar | None,
     whole: Any,
-    *,
-    threshold: float,
-    min_cells: int,
-    significance: float,
-    merge_threshold: float,
-    max_partitions: int,
-    max_candidates: int,
-    uses_free: bool,
-    drop_isolated: bool,
+    settings: Settings,
 ) -> list[Found]:
-    """Algorithm 1: the partitions in the order found (members index ``points``).
-
-    ``uses_free``: the registration uses free space; ``drop_isolated``: isolated occupied
-    cells are hidden from it (the reference's walls are connected lines)."""
+    """Algorithm 1: the partitions in the order found (members index ``points``)."""
+    threshold, merge_threshold = settings.threshold, settings.loose
+    min_cells, significance = settings.min_cells, settings.significance
+    max_partitions, max_candidates = settings.max_partitions, settings.max_candidates
+    uses_free, drop_isolated = settings.uses_free, settings.drop_isolated
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
     reference_occupied = index.reference.occupied
@@ -504,9 +408,7 @@ def _recurse(
         left = np.flatnonzero(remaining)
         left_points = points[left]
         n = left.size
-        chance = n * p0
-        spread = math.sqrt(chance * (1.0 - p0))
-        needed = max(min_cells, chance + significance * spread)
+        chance, spread, needed = settings.needed(n, p0)
         best = None
         # A step first asks the registration (with R, and with R' when the best hypothesis of
         # R lies mostly on matched walls: see "Two references") for its usual hypotheses,
@@ -565,18 +467,7 @@ def _recurse(
         ):
             # No part dominates what is left (a heavily broken map): its spectra have no
             # peak of their own. Parts of the map do: register regions of it.
-            fresh += _region_candidates(
-                working,
-                rows,
-                cols,
-                remaining,
-                thorough,
-                whole,
-                min_cells,
-                max_candidates,
-                uses_free,
-                drop_isolated,
-            )
+            fresh += _region_candidates(working, rows, cols, remaining, thorough, whole, settings)
             pool += fresh
             regional = best_hypothesis(pool, left_points, index, threshold, refined)
             if regional is not None and (

@@ -1,0 +1,191 @@
+"""The options of :func:`brokenness.compute_brokenness`, and the settings every stage reads.
+
+:class:`BrokennessOptions` is what a user chooses (one frozen object, validated once);
+:class:`Settings` is what the stages of the measure (recursion, recovery, the tests of the
+partitions) read, derived once per map from the options, the map and the registration.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+from ..errors import ParameterError
+from ..registration.methods import METHODS
+
+__all__ = ["BrokennessOptions", "Settings"]
+
+
+@dataclass(frozen=True)
+class BrokennessOptions:
+    """Options of :func:`brokenness.compute_brokenness` (all validated on construction).
+
+    Attributes
+    ----------
+    method : {"ifmi", "random-walk"}
+        Registration of each step: the deterministic improved Fourier-Mellin method of the
+        paper, or the stochastic map-merging baseline (Birk & Carpin 2006).
+    threshold : float
+        ``c`` of Psi_2, in reference cells: a moved map cell agrees with the reference when
+        the Manhattan distance to the nearest occupied reference cell is at most ``c``.
+        Default 2 (10 cm at 5 cm per cell), enough for wall thickness and jitter.
+    min_partition_fraction : float
+        Smallest partition, as a share of the map's occupied cells (default 2 %).
+    min_partition_cells : int
+        Smallest partition, in cells (default 30).
+    significance : float
+        ``z`` of the chance test of the stopping rule (default 6).
+    merge_threshold : float or None
+        Loose agreement (cells) used to merge a new set into an earlier partition, and the
+        fringe of a partition; ``None`` (default): ``2 * threshold``.
+    max_partitions : int
+        Upper bound on the number of partitions (default 16): the recursion always ends.
+    max_candidates : int
+        Registration hypotheses examined per step (default 6).
+    seed : int or None
+        Seed of the random-walk registration (iFMI uses no randomness).
+    registration_options : mapping
+        Keyword options of the registration method (see :func:`brokenness.register`); kept
+        as a sorted tuple of ``(name, value)`` pairs, so that the options stay frozen.
+    """
+
+    method: str = "ifmi"
+    threshold: float = 2.0
+    min_partition_fraction: float = 0.02
+    min_partition_cells: int = 30
+    significance: float = 6.0
+    merge_threshold: float | None = None
+    max_partitions: int = 16
+    max_candidates: int = 6
+    seed: int | None = None
+    registration_options: Mapping[str, Any] | tuple[tuple[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if not (_number(self.threshold) and self.threshold > 0):
+            raise ParameterError(
+                f"threshold must be a positive number of cells, got {self.threshold!r}"
+            )
+        if not (_number(self.min_partition_fraction) and 0.0 <= self.min_partition_fraction < 1):
+            raise ParameterError(
+                f"min_partition_fraction must be in [0, 1), got {self.min_partition_fraction!r}"
+            )
+        if not (_whole(self.min_partition_cells) and self.min_partition_cells >= 1):
+            raise ParameterError(
+                f"min_partition_cells must be an integer >= 1, got {self.min_partition_cells!r}"
+            )
+        if not (_number(self.significance) and self.significance >= 0):
+            raise ParameterError(f"significance must be >= 0, got {self.significance!r}")
+        loose = self.loose
+        if not (_number(loose) and loose >= self.threshold):
+            raise ParameterError("merge_threshold must be a number at least threshold")
+        if not (_whole(self.max_partitions) and self.max_partitions >= 1):
+            raise ParameterError(
+                f"max_partitions must be an integer >= 1, got {self.max_partitions!r}"
+            )
+        if not (_whole(self.max_candidates) and self.max_candidates >= 1):
+            raise ParameterError(
+                f"max_candidates must be an integer >= 1, got {self.max_candidates!r}"
+            )
+        if self.seed is not None and not _whole(self.seed):
+            raise ParameterError(f"seed must be an integer, got {self.seed!r}")
+        given = self.registration_options
+        try:
+            items = dict(given.items() if isinstance(given, Mapping) else given)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                "registration_options must be a mapping of keyword options"
+            ) from None
+        if not all(isinstance(k, str) for k in items):
+            raise ParameterError("registration_options must be keyed by option names")
+        # frozen, as the options object is: a sorted tuple of pairs
+        object.__setattr__(self, "registration_options", tuple(sorted(items.items())))
+
+    @property
+    def loose(self) -> float:
+        """The merge threshold in effect (``2 * threshold`` unless given)."""
+        return 2.0 * self.threshold if self.merge_threshold is None else self.merge_threshold
+
+    @property
+    def registration_kwargs(self) -> dict[str, Any]:
+        """``registration_options`` as keyword arguments."""
+        return dict(self.registration_options)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The options as plain values (the merge threshold in effect), for the record."""
+        record = {f.name: getattr(self, f.name) for f in fields(self)}
+        record["merge_threshold"] = self.loose
+        record["registration_options"] = self.registration_kwargs
+        return record
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What the stages of the measure read, fixed for one map.
+
+    Attributes
+    ----------
+    threshold : float
+        Agreement threshold ``c`` (cells).
+    loose : float
+        Loose agreement of the merge test and the fringe (cells).
+    min_cells : int
+        Smallest partition, in cells of this map:
+        ``max(min_partition_cells, ceil(min_partition_fraction * N))``.
+    significance : float
+        ``z`` of the chance test.
+    max_partitions, max_candidates : int
+        Bounds of the recursion, and hypotheses examined per step.
+    uses_free : bool
+        The registration uses free space (then withdrawn walls take their free space along).
+    drop_isolated : bool
+        Isolated occupied cells are hidden from the registration (the reference's walls are
+        connected lines).
+    """
+
+    threshold: float
+    loose: float
+    min_cells: int
+    significance: float
+    max_partitions: int
+    max_candidates: int
+    uses_free: bool
+    drop_isolated: bool
+
+    @classmethod
+    def of(
+        cls, options: BrokennessOptions, n_occupied: int, uses_free: bool, drop_isolated: bool
+    ) -> Settings:
+        """The settings for a map of ``n_occupied`` occupied cells."""
+        return cls(
+            threshold=options.threshold,
+            loose=options.loose,
+            min_cells=max(
+                options.min_partition_cells,
+                math.ceil(options.min_partition_fraction * n_occupied),
+            ),
+            significance=options.significance,
+            max_partitions=options.max_partitions,
+            max_candidates=options.max_candidates,
+            uses_free=uses_free,
+            drop_isolated=drop_isolated,
+        )
+
+    def needed(self, n: int, p0: float) -> tuple[float, float, float]:
+        """The stopping rule for ``n`` cells left and chance agreement ``p0``: the cells
+        chance explains, their spread, and the agreeing cells a partition needs
+        (``max(min_cells, n p0 + z sqrt(n p0 (1 - p0)))``)."""
+        chance = n * p0
+        spread = math.sqrt(chance * (1.0 - p0))
+        return chance, spread, max(self.min_cells, chance + self.significance * spread)
