@@ -29,6 +29,7 @@ map was measured at 1.19 times the chance rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -44,7 +45,8 @@ from .views import isolated_cells
 __all__ = ["MAP_RATIO", "Contradiction", "contradiction", "distance_to"]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
-#: the chance rate (see the module docstring and the README for how it was chosen).
+#: the chance rate, at the significance of the stopping rule (:meth:`Contradiction.upper_ratio`;
+#: see the module docstring and the README for how it was chosen).
 MAP_RATIO = 0.5
 #: A rate is judged only when chance alone would put at least this many of its cells on
 #: walls (fewer cells cannot tell a rate from the chance rate).
@@ -83,6 +85,21 @@ class Contradiction:
         if self.chance <= 0.0 or n * self.chance < MIN_EXPECTED:
             return None
         return (x / n) / self.chance
+
+    def upper_ratio(self, z: float) -> float:
+        """Upper confidence bound, ``z`` standard deviations, of the whole map's ratio.
+
+        The contradicting cells are counted as a Poisson count ``X``; its upper bound is
+        ``X + z sqrt(X + 1) + z^2 / 3`` (a close one-sided bound also for small counts), over
+        the count chance would give (``n q``). ``inf`` when nothing is counted: a map that
+        shows no free space on the reference cannot show that it fits there.
+        """
+        n = int(self.counted.sum())
+        x = int(self.contradicting.sum())
+        expected = n * self.chance
+        if expected <= 0.0:
+            return math.inf
+        return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
 
 
 def distance_to(mask: NDArray[np.bool_]) -> NDArray[np.float32]:

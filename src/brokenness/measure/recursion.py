@@ -245,7 +245,7 @@ def compute_brokenness(
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
-    map_ratio, ratios = _judge(found, points, working, index, settings.threshold)
+    reason, map_ratio, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
     )
@@ -269,18 +269,6 @@ def compute_brokenness(
         for p in found_partitions
     )
     parameters = opts.to_dict() | {"working_resolution": working.resolution}
-    reason = None
-    if not partitions:
-        reason = (
-            "no part of the map agrees with the reference under any transform found "
-            "(registration failed, or not the same place?)"
-        )
-    elif map_ratio is not None and map_ratio > MAP_RATIO:
-        reason = (
-            f"the map's free space crosses the reference's walls at {100 * map_ratio:.0f} % "
-            f"of the rate of a random placement (at most {100 * MAP_RATIO:.0f} % for a map "
-            "of the reference's place): not the same place?"
-        )
     if reason is not None:
         warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=2)
     return BrokennessResult(
@@ -334,15 +322,42 @@ def _judge(
     points: NDArray[np.float64],
     working: OccupancyMap,
     index: ReferenceIndex,
-    threshold: float,
-) -> tuple[float | None, list[float | None]]:
-    """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`): the whole
-    map's ratio (observed free-space contradiction over the chance rate), which says whether
-    the map is of the reference's place, and each partition's, largest first (as
-    :func:`assemble` sorts them)."""
-    evidence = contradiction(found, points, working, index, threshold)
+    settings: Settings,
+) -> tuple[str | None, float | None, list[float | None]]:
+    """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`).
+
+    Returns why the map is not measured (``None`` if it is), the whole map's ratio (observed
+    free-space contradiction over the chance rate) and each partition's, largest first (as
+    :func:`assemble` sorts them). The map is measured when the upper bound of its ratio, at
+    the stopping rule's significance, is at most :data:`MAP_RATIO`.
+    """
+    if not found:
+        return (
+            "no part of the map agrees with the reference under any transform found "
+            "(registration failed, or not the same place?)",
+            None,
+            [],
+        )
+    evidence = contradiction(found, points, working, index, settings.threshold)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
-    return evidence.ratio(), [evidence.ratio(i) for i in order]
+    ratios = [evidence.ratio(i) for i in order]
+    ratio = evidence.ratio()
+    upper = evidence.upper_ratio(settings.significance)
+    reason: str | None = None
+    if not math.isfinite(upper):
+        reason = (
+            "the map shows no free space on the reference under its partitions' transforms: "
+            "nothing tells whether it is of the reference's place"
+        )
+    elif upper > MAP_RATIO:
+        seen = "too few free cells to tell" if ratio is None else f"{100 * ratio:.0f} %"
+        reason = (
+            f"the map's free space crosses the reference's walls at {seen} of the rate of a "
+            f"random placement (up to {100 * upper:.0f} % at {settings.significance:g} sigma; "
+            f"at most {100 * MAP_RATIO:.0f} % for a map of the reference's place): "
+            "not the same place?"
+        )
+    return reason, ratio, ratios
 
 
 def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> BrokennessOptions:
