@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapFormatError, MapSizeError
-from ..grid import MAX_CELLS
+from ..limits import check_cells
 
 __all__ = ["PGM_MAGICS", "decode_pgm", "encode_pgm"]
 
@@ -49,11 +49,7 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
     width, height, maxval = values
     if width == 0 or height == 0:
         raise MapSizeError(f"{name}: PGM image has a zero side ({width}x{height})")
-    if width * height > MAX_CELLS:
-        raise MapSizeError(
-            f"{name}: PGM image of {width}x{height} pixels is larger than the limit of "
-            f"{MAX_CELLS} cells"
-        )
+    check_cells(height, width, f"{name}: PGM image")
     if not 1 <= maxval <= 65535:
         raise MapFormatError(f"{name}: invalid PGM maxval {maxval} (must be 1..65535)")
     return width, height, maxval, pos + 1
@@ -94,7 +90,7 @@ def decode_pgm(data: bytes, name: str) -> tuple[NDArray[np.unsignedinteger], int
     MapFormatError
         Bad magic or header, truncated pixel data, samples above ``maxval``.
     MapSizeError
-        If the header announces a zero side or more than :data:`~brokenness.grid.MAX_CELLS`
+        If the header announces a zero side or more than :func:`~brokenness.limits.max_cells`
         pixels (checked before decoding anything).
     """
     magic = data[:2]
