@@ -5,16 +5,17 @@ from __future__ import annotations
 import io
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapError, MapFormatError, MapSizeError
 from ..grid import OCCUPIED, UNKNOWN, OccupancyMap
-from ..limits import check_cells, max_cells
+from ..limits import max_cells
 from ._files import one_line, read_file_bytes
 
-__all__ = ["decode_npy", "encode_npy"]
+__all__ = ["check_npy_header", "decode_npy", "encode_npy"]
 
 
 def decode_npy(
@@ -47,33 +48,7 @@ def decode_npy(
     """
     name = str(path)
     data = read_file_bytes(path, what=".npy array")
-    stream = io.BytesIO(data)
-    try:
-        version = np.lib.format.read_magic(stream)
-        if version == (1, 0):
-            shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
-        else:
-            shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
-    except Exception as exc:  # numpy raises ValueError or others on a bad header
-        raise MapFormatError(f"{name}: not a valid .npy file ({one_line(exc)})") from None
-    # every check on the header, before numpy allocates anything
-    if len(shape) != 2:
-        cells = math.prod(shape)
-        if cells > max_cells():
-            raise MapSizeError(
-                f"{name}: array of shape {shape} ({cells} cells) is larger than the limit of "
-                f"{max_cells()} cells"
-            )
-        raise MapError(f"{name}: a map must be a 2D array, got shape {shape}")
-    check_cells(shape[0], shape[1], f"{name}: array")
-    if dtype.hasobject:
-        raise MapFormatError(f"{name}: unreadable .npy array (object arrays are refused)")
-    need = shape[0] * shape[1] * dtype.itemsize
-    have = len(data) - stream.tell()
-    if need > have:
-        raise MapFormatError(
-            f"{name}: truncated .npy file ({have} of {need} bytes of data for shape {shape})"
-        )
+    check_npy_header(data, name)  # every check on the header, before numpy allocates anything
     try:
         arr = np.load(io.BytesIO(data), allow_pickle=False)
     except ValueError as exc:
@@ -96,6 +71,59 @@ def decode_npy(
         raise type(exc)(f"{name}: {exc}") from None
     except (TypeError, ValueError) as exc:  # complex, structured, string arrays...
         raise MapFormatError(f"{name}: unsupported array ({one_line(exc)})") from None
+
+
+def check_npy_header(data: bytes, name: str) -> tuple[tuple[int, ...], np.dtype[Any]]:
+    """Validate the header of ``.npy`` bytes before numpy allocates the array.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole ``.npy`` file.
+    name : str
+        The file, for messages.
+
+    Returns
+    -------
+    shape : tuple of int
+    dtype : numpy.dtype
+
+    Raises
+    ------
+    MapFormatError
+        A bad header, an object (pickled) array, or fewer data bytes than the header claims.
+    MapSizeError
+        More cells than :func:`~brokenness.limits.max_cells`, whatever the number of
+        dimensions.
+    MapError
+        Not a 2D array.
+    """
+    stream = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(stream)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
+    except Exception as exc:  # numpy raises ValueError or others on a bad header
+        raise MapFormatError(f"{name}: not a valid .npy file ({one_line(exc)})") from None
+    cells = math.prod(shape)
+    if cells > max_cells():
+        raise MapSizeError(
+            f"{name}: array of shape {shape} ({cells} cells) is larger than the limit of "
+            f"{max_cells()} cells"
+        )
+    if len(shape) != 2:
+        raise MapError(f"{name}: a map must be a 2D array, got shape {shape}")
+    if dtype.hasobject:
+        raise MapFormatError(f"{name}: unreadable .npy array (object arrays are refused)")
+    need = cells * dtype.itemsize
+    have = len(data) - stream.tell()
+    if need > have:
+        raise MapFormatError(
+            f"{name}: truncated .npy file ({have} of {need} bytes of data for shape {shape})"
+        )
+    return shape, dtype
 
 
 def encode_npy(states: NDArray[np.int8]) -> bytes:
