@@ -98,7 +98,12 @@ def run(args: argparse.Namespace) -> int:
 
     from ..batch import read_manifest, run_batch
     from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_SKIPPED
+    from ..limits import check_threshold
+    from ._outputs import check_output_folder
 
+    check_output_folder(args.out, "--out")
+    if args.threshold is not None:
+        check_threshold(args.threshold)
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
     console = Console(stderr=True)
     summary = run_batch(

@@ -73,7 +73,14 @@ def _run(args: argparse.Namespace) -> int:
         print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as exc:  # unwritable output path, disk full...
-        print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
+        print(f"brokenness {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        print(
+            f"brokenness {args.command}: error: out of memory (the input is too large for "
+            "this machine; see BROKENNESS_MAX_CELLS)",
+            file=sys.stderr,
+        )
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("brokenness: interrupted", file=sys.stderr)
