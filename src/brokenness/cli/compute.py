@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
+from ..errors import NothingFoundWarning
 from ..grid import OccupancyMap
 from ..measure import BrokennessResult, compute_brokenness
 from ..registration.methods import METHODS
+from .main import EXIT_NOT_MEASURED, EXIT_OK
 
 __all__ = ["add_parser", "run"]
 
@@ -24,6 +27,10 @@ def add_parser(subparsers: Any) -> None:
             "Split MAP into partitions that each agree with REFERENCE under their own rigid "
             "transform (Birk 2010, Algorithm 1) and report the degree of brokenness "
             "(partitions - 1). Maps: ROS map YAML, PGM, PNG (and other images), .npy."
+        ),
+        epilog=(
+            "exit status: 0 measured; 2 bad input or options; 3 not measured: no part of the "
+            "map agrees with the reference well enough (not the same place?), degree null"
         ),
     )
     p.add_argument("map", help="the map under test")
@@ -77,14 +84,17 @@ def run(args: argparse.Namespace) -> int:
     ref = load_map(args.reference, topic=args.topic)
     check_measurable(m.n_occupied, args.map)
     check_threshold(args.threshold, ref.shape)
-    result = compute_brokenness(
-        m,
-        ref,
-        method=args.method,
-        seed=args.seed,
-        threshold=args.threshold,
-        min_partition_fraction=args.min_partition_fraction,
-    )
+    with warnings.catch_warnings():  # said once, below, as the result's reason
+        warnings.simplefilter("ignore", NothingFoundWarning)
+        result = compute_brokenness(
+            m,
+            ref,
+            method=args.method,
+            seed=args.seed,
+            threshold=args.threshold,
+            min_partition_fraction=args.min_partition_fraction,
+        )
+    status = EXIT_OK if result.measured else EXIT_NOT_MEASURED
     if args.overlay:
         from ..report.overlay import render_overlay
 
@@ -106,11 +116,11 @@ def run(args: argparse.Namespace) -> int:
     if args.json == "-":
         json.dump(_json_record(result, args), sys.stdout, indent=2)
         sys.stdout.write("\n")
-        return 0
+        return status
     if args.json:
         _write_json(Path(args.json), _json_record(result, args))
     _print_summary(result, m, ref)
-    return 0
+    return status
 
 
 def _json_record(result: BrokennessResult, args: argparse.Namespace) -> dict[str, Any]:
@@ -131,6 +141,12 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
     from rich.table import Table
 
     console = Console()
+    if not result.measured:
+        console.print(
+            f"[bold]degree of brokenness: not measured[/bold] ({result.reason}; method "
+            f"{result.method}, {result.seconds:.3f} s)"
+        )
+        return
     console.print(
         f"[bold]degree of brokenness: {result.degree}[/bold]  "
         f"({len(result.partitions)} partition(s), method {result.method}, "
@@ -158,8 +174,3 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
         f"unassigned: {result.unassigned_cells} of {result.occupied_cells} occupied cells "
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
-    if not result.partitions:
-        console.print(
-            "[bold]no part of the map agrees with the reference under any transform found: "
-            "the degree was not measured[/bold] (registration failed, or not the same place?)"
-        )

@@ -360,15 +360,15 @@ def compute_brokenness(
         "registration_options": dict(registration_options or {}),
         "working_resolution": working.resolution,
     }
+    reason = None
     if not partitions:
-        warnings.warn(
-            "no part of the map agrees with the reference under any transform found (every "
-            "occupied cell is unassigned): the degree was not measured",
-            NothingFoundWarning,
-            stacklevel=2,
+        reason = (
+            "no part of the map agrees with the reference under any transform found "
+            "(registration failed, or not the same place?)"
         )
+        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=2)
     return BrokennessResult(
-        degree=max(len(partitions) - 1, 0),
+        degree=len(partitions) - 1 if partitions else None,
         partitions=partitions,
         labels=labels,
         occupied_cells=n_occupied,
@@ -376,6 +376,8 @@ def compute_brokenness(
         method=method,
         parameters=parameters,
         seconds=time.perf_counter() - started,
+        measured=bool(partitions),
+        reason=reason,
     )
 
 

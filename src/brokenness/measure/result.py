@@ -80,9 +80,9 @@ class BrokennessResult:
 
     Attributes
     ----------
-    degree : int
-        Number of partitions minus one (0 = not broken). 0 also when no partition at all
-        could be found (then ``partitions`` is empty and every cell is unassigned).
+    degree : int or None
+        Number of partitions minus one (0 = not broken); ``None`` when the degree was not
+        measured (see ``measured``).
     partitions : tuple of Partition
         Largest first.
     labels : ndarray of int16
@@ -99,9 +99,15 @@ class BrokennessResult:
         Every option that shaped the result (threshold, stopping rule...), for the record.
     seconds : float
         Total wall-clock time.
+    measured : bool
+        False when the evidence does not show that the map is of the reference's place (no
+        part of it agrees with the reference well enough to carry a partition): then
+        ``degree`` is ``None`` and ``reason`` says why. Never a silent 0.
+    reason : str or None
+        Why the degree was not measured (``None`` when it was).
     """
 
-    degree: int
+    degree: int | None
     partitions: tuple[Partition, ...]
     labels: NDArray[np.int16] = field(repr=False)
     occupied_cells: int
@@ -109,6 +115,8 @@ class BrokennessResult:
     method: str
     parameters: dict[str, Any]
     seconds: float
+    measured: bool = True
+    reason: str | None = None
 
     @property
     def unassigned_fraction(self) -> float:
@@ -128,7 +136,9 @@ class BrokennessResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (without the label image)."""
         return {
+            "measured": self.measured,
             "degree": self.degree,
+            "reason": self.reason,
             "occupied_cells": self.occupied_cells,
             "unassigned_cells": self.unassigned_cells,
             "unassigned_fraction": self.unassigned_fraction,
