@@ -190,6 +190,10 @@ class BatchSummary:
 # -- one pair ---------------------------------------------------------------------------------
 def one_line(exc: BaseException) -> str:
     """A one-line message for an exception (type name added unless it is ours)."""
+    if isinstance(exc, MemoryError):
+        limit = os.environ.get(WORKER_MEMORY_ENV)
+        where = f" (over {WORKER_MEMORY_ENV}={limit})" if limit else ""
+        return f"out of memory{where}: MemoryError"
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if isinstance(exc, BrokennessError) else f"{type(exc).__name__}: {text}"
 

@@ -29,6 +29,7 @@ _SKIP = re.compile(rb"(?:[ \t\r\n\v\f]+|#[^\r\n]*(?:\r\n|\r|\n))*")
 _NUMBER = re.compile(rb"[0-9]{1,12}")
 _COMMENT = re.compile(rb"#[^\r\n]*")
 _WHITESPACE = b" \t\r\n\v\f"
+_MAX_REPEAT = 1 << 31  # below the regular expression engine's largest repeat count
 
 
 def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
@@ -57,6 +58,14 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
 
 def _parse_plain(body: bytes, count: int, name: str) -> NDArray[np.int64]:
     """Decimal samples of a plain PGM body (comments removed): numpy's C parser first."""
+    if len(body) > 8 * count + 4096 and count < _MAX_REPEAT:
+        # far more text than ``count`` samples need (6 bytes each at most, "65535 "): only
+        # the first ``count`` tokens are samples, so cut the rest off before numpy parses
+        # (and allocates) them; a tiny header cannot make it parse a huge body. Possessive
+        # quantifiers: the match never backtracks, it runs in linear time in C.
+        match = re.match(rb"(?:[ \t\r\n\v\f]*+[^ \t\r\n\v\f]++){%d}" % count, body)
+        if match is not None:
+            body = body[: match.end()]
     try:
         return np.fromstring(body, dtype=np.int64, sep=" ")
     except ValueError:
