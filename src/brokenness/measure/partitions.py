@@ -20,6 +20,7 @@ __all__ = [
     "Found",
     "assemble",
     "consolidate",
+    "drop_redundant",
     "labels_in_original_grid",
     "merge_target",
     "owners",
@@ -269,3 +270,58 @@ def _joined(
     if max(agreeing) < JOIN_SHARE * union.size:
         return None
     return i, Found(keep.transform, union, keep.confidence, found[i].seconds + found[j].seconds)
+
+
+def drop_redundant(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    min_cells: int,
+) -> list[Found]:
+    """Drop shifted copies: partitions at the rotation of another that explain fewer than
+    ``min_cells`` cells it does not.
+
+    A piece at the rotation of a partition already found (within
+    :data:`SAME_ROTATION_DEG`), merely shifted, is what a long straight corridor gives by
+    coincidence: under the shift its walls along the corridor still lie on reference walls.
+    Its evidence of its own is the cells that agree under its transform and under none of
+    the partitions at its rotation: the walls across the shift. Each round drops the
+    partition with the fewest such cells if they are fewer than ``min_cells`` (the smallest
+    partition of the stopping rule), and reassigns the cells. A partition turned against
+    every other is not judged here: its transform is its own evidence.
+    """
+    while len(found) > 1:
+        exclusive: list[int | None] = []
+        for j, f in enumerate(found):
+            twins = [
+                g
+                for q, g in enumerate(found)
+                if q != j and abs(_turn_deg(f.transform, g.transform)) <= SAME_ROTATION_DEG
+            ]
+            if not twins:
+                exclusive.append(None)
+                continue
+            pts = points[f.members]
+            own = index.occupied_agreement(f.transform.apply(pts), threshold)
+            for g in twins:
+                own &= ~index.occupied_agreement(g.transform.apply(pts), threshold)
+            exclusive.append(int(np.count_nonzero(own)))
+        judged = [j for j, e in enumerate(exclusive) if e is not None]
+        if not judged:
+            break
+        worst = min(judged, key=lambda j: (exclusive[j], j))
+        if (exclusive[worst] or 0) >= min_cells:
+            break
+        kept = [f for j, f in enumerate(found) if j != worst]
+        found = reassign(kept, points, index, threshold, min_cells) if len(kept) > 1 else kept
+    return found
+
+
+#: Partitions turned by at most this much against each other are at "the same rotation".
+SAME_ROTATION_DEG = 2.0
+
+
+def _turn_deg(a: RigidTransform, b: RigidTransform) -> float:
+    """Rotation of ``a`` relative to ``b``, degrees in (-180, 180]."""
+    return math.degrees(math.remainder(a.rotation - b.rotation, 2 * math.pi))

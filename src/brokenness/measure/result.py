@@ -47,6 +47,10 @@ class Partition:
         The same in metres, when the reference resolution is known.
     step_seconds : float
         Time of the recursion step that found it (registration + masking).
+    contradiction : float or None
+        How often the map's free space of this partition lands on reference walls under its
+        transform, over the rate of a random placement (0: never; 1: as often as chance;
+        ``None``: too little free space to tell). See :mod:`brokenness.measure.evidence`.
     """
 
     index: int
@@ -58,6 +62,7 @@ class Partition:
     displacement: float
     displacement_m: float | None
     step_seconds: float
+    contradiction: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
@@ -71,6 +76,7 @@ class Partition:
             "displacement_cells": self.displacement,
             "displacement_m": self.displacement_m,
             "step_seconds": self.step_seconds,
+            "contradiction": self.contradiction,
         }
 
 
@@ -105,6 +111,10 @@ class BrokennessResult:
         ``degree`` is ``None`` and ``reason`` says why. Never a silent 0.
     reason : str or None
         Why the degree was not measured (``None`` when it was).
+    contradiction : float or None
+        The whole map's free-space contradiction over the chance rate, over every partition
+        the recursion found (:mod:`brokenness.measure.evidence`); above
+        :data:`~brokenness.measure.evidence.MAP_RATIO` the map is not measured.
     """
 
     degree: int | None
@@ -117,6 +127,7 @@ class BrokennessResult:
     seconds: float
     measured: bool = True
     reason: str | None = None
+    contradiction: float | None = None
 
     @property
     def unassigned_fraction(self) -> float:
@@ -139,6 +150,7 @@ class BrokennessResult:
             "measured": self.measured,
             "degree": self.degree,
             "reason": self.reason,
+            "contradiction": self.contradiction,
             "occupied_cells": self.occupied_cells,
             "unassigned_cells": self.unassigned_cells,
             "unassigned_fraction": self.unassigned_fraction,
