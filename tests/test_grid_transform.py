@@ -45,10 +45,8 @@ def test_bad_arrays_raise_map_error(bad):
 
 
 def test_absurd_size_is_refused_before_allocation(monkeypatch):
-    import brokenness.grid as grid
-
-    monkeypatch.setattr(grid, "MAX_CELLS", 100)
-    with pytest.raises(MapSizeError):
+    monkeypatch.setenv("BROKENNESS_MAX_CELLS", "100")  # the documented override
+    with pytest.raises(MapSizeError, match="BROKENNESS_MAX_CELLS"):
         OccupancyMap(np.zeros((11, 10), np.int8))
 
 

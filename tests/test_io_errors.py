@@ -316,9 +316,9 @@ def test_permission_error_is_converted(tmp_path: Path, monkeypatch: pytest.Monke
     # runs as root too (where chmod 0 does not stop reading): simulate the OS refusing
     p = good_pgm(tmp_path / "a.pgm")
 
-    def refuse(self: Path) -> bytes:
+    def refuse(path: Path) -> int:
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(Path, "read_bytes", refuse)
+    monkeypatch.setattr("brokenness.io._files.open_nonblocking", refuse)
     expect(MapError, p, "permission denied")
     expect(MapError, Path(str(p)), "permission denied")

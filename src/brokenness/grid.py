@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import MapError, MapSizeError
+from .limits import MAX_CELLS, check_cells
 
 __all__ = [
     "FREE",
@@ -35,10 +36,10 @@ FREE: int = 0
 #: Cell state of a cell that was never observed.
 UNKNOWN: int = -1
 
-#: Largest map accepted, in cells (e.g. 10000 x 10000: 500 m x 500 m at 5 cm). Larger inputs
-#: raise :class:`MapSizeError` before anything is decoded; the brokenness computation needs
-#: about 40 bytes per cell, so this keeps one map within a few GB of memory.
-MAX_CELLS: int = 100_000_000
+# MAX_CELLS (re-exported here): the default largest map, in cells (e.g. 10000 x 10000:
+# 500 m x 500 m at 5 cm); the limit in force is brokenness.limits.max_cells(), which the
+# environment variable BROKENNESS_MAX_CELLS overrides. Larger inputs raise MapSizeError
+# before anything is decoded.
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,7 +64,7 @@ class OccupancyMap:
     MapError
         If ``states`` is not 2D, holds values other than -1, 0, 1, or the geometry is invalid.
     MapSizeError
-        If the map has a zero side or more than :data:`MAX_CELLS` cells.
+        If the map has a zero side or more than :func:`brokenness.limits.max_cells` cells.
     """
 
     states: NDArray[np.int8]
@@ -78,10 +79,7 @@ class OccupancyMap:
         rows, cols = states.shape
         if rows == 0 or cols == 0:
             raise MapSizeError(f"a map must have at least one row and column, got {rows}x{cols}")
-        if rows * cols > MAX_CELLS:
-            raise MapSizeError(
-                f"map of {cols}x{rows} cells is larger than the limit of {MAX_CELLS} cells"
-            )
+        check_cells(rows, cols, "map")
         if states.dtype != np.int8:
             if not np.issubdtype(states.dtype, np.integer):
                 raise MapError(f"map states must be integers -1/0/1, got dtype {states.dtype}")

@@ -32,9 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..errors import BrokennessError
+from ..limits import MAX_MANIFEST_BYTES
 
 __all__ = ["COMPUTE_LABELS", "Manifest", "ManifestError", "Pair", "pairs_of", "read_manifest"]
 
@@ -145,6 +144,15 @@ def _text(value: Any) -> str:
     return str(value).strip()
 
 
+def _absolute(path: Path) -> Path:
+    """``path.resolve()``, or the absolute path when resolving fails (a symbolic link loop is
+    reported by the map reader, precisely, when the pair is evaluated)."""
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError, ValueError):
+        return Path(os.path.abspath(path))
+
+
 def _make_pair(entry: Mapping[str, Any], row: int, base: Path, where: str) -> Pair:
     values = {str(k).strip(): _text(v) for k, v in entry.items() if k is not None}
     for col in _PATH_COLUMNS:
@@ -157,8 +165,8 @@ def _make_pair(entry: Mapping[str, Any], row: int, base: Path, where: str) -> Pa
     paths = [Path(os.path.expanduser(values[c])) for c in _PATH_COLUMNS]
     resolved = [p if p.is_absolute() else (base / p) for p in paths]
     return Pair(
-        map=resolved[0].resolve(),
-        reference=resolved[1].resolve(),
+        map=_absolute(resolved[0]),
+        reference=_absolute(resolved[1]),
         map_text=values["map"],
         reference_text=values["reference"],
         labels=labels,
@@ -166,11 +174,28 @@ def _make_pair(entry: Mapping[str, Any], row: int, base: Path, where: str) -> Pa
     )
 
 
+def _read_text(path: Path) -> str:
+    """The manifest's text: a regular file of at most MAX_MANIFEST_BYTES, UTF-8."""
+    from ..io._files import read_file_bytes
+
+    try:
+        data = read_file_bytes(path, MAX_MANIFEST_BYTES, "manifest")
+    except BrokennessError as exc:
+        raise ManifestError(str(exc)) from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise ManifestError(f"{path}: not a text file (not UTF-8)") from None
+
+
 def _read_csv(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise ManifestError(f"{path}: not a text file") from None
+        return _parse_csv(path, _read_text(path))
+    except csv.Error as exc:  # NUL bytes, a field over csv.field_size_limit()...
+        raise ManifestError(f"{path}: invalid CSV ({' '.join(str(exc).split())})") from None
+
+
+def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise ManifestError(f"{path}: empty manifest")
@@ -193,11 +218,14 @@ def _read_csv(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
 
 
 def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    from ..io._yaml import parse_yaml
+
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ManifestError(f"{path}: not valid YAML ({first})") from None
+        doc = parse_yaml(_read_text(path), str(path))
+    except ManifestError:
+        raise
+    except BrokennessError as exc:  # duplicate keys, bad tagged values, nesting too deep...
+        raise ManifestError(f"{exc}".replace("invalid YAML", "not valid YAML", 1)) from None
     options: dict[str, Any] = {}
     defaults: dict[str, Any] = {}
     if isinstance(doc, Mapping):
@@ -238,7 +266,9 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     Raises
     ------
     ManifestError
-        If the file is missing, of an unknown kind, has no ``map``/``reference`` columns,
+        If the file is missing, not a regular file, larger than
+        :data:`~brokenness.limits.MAX_MANIFEST_BYTES`, of an unknown kind, invalid CSV or
+        YAML (duplicate keys, bad tagged values), has no ``map``/``reference`` columns,
         has a row without them, no pairs, or the same pair twice.
 
     Examples
@@ -247,7 +277,7 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     >>> [p.labels["system"] for p in m.pairs]  # doctest: +SKIP
     """
     p = Path(path)
-    if not p.is_file():
+    if not os.path.lexists(p):
         raise ManifestError(f"{p}: no such manifest file")
     suffix = p.suffix.lower()
     if suffix == ".csv":

@@ -17,7 +17,7 @@ every pair, done now or before, is written as ``summary.csv`` and ``summary.md``
 
 from __future__ import annotations
 
-import concurrent.futures as cf
+import contextlib
 import csv
 import io
 import json
@@ -26,7 +26,7 @@ import multiprocessing
 import os
 import time
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -49,6 +49,7 @@ from ..report.results import ResultFileError, ResultRecord, atomic_write, load_r
 from .manifest import Manifest, Pair, pairs_of
 
 __all__ = [
+    "BatchLockedError",
     "BatchSummary",
     "PairOptions",
     "RowResult",
@@ -189,6 +190,10 @@ class BatchSummary:
 # -- one pair ---------------------------------------------------------------------------------
 def one_line(exc: BaseException) -> str:
     """A one-line message for an exception (type name added unless it is ours)."""
+    if isinstance(exc, MemoryError):
+        limit = os.environ.get(WORKER_MEMORY_ENV)
+        where = f" (over {WORKER_MEMORY_ENV}={limit})" if limit else ""
+        return f"out of memory{where}: MemoryError"
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if isinstance(exc, BrokennessError) else f"{type(exc).__name__}: {text}"
 
@@ -215,6 +220,7 @@ def evaluate_pair(pair: Pair, out_dir: str | os.PathLike[str], options: PairOpti
     RowResult
     """
     from ..io import load_map
+    from ..limits import check_measurable, check_threshold
     from ..measure import compute_brokenness
     from ..report.results import save_results
 
@@ -225,6 +231,8 @@ def evaluate_pair(pair: Pair, out_dir: str | os.PathLike[str], options: PairOpti
         ref = load_map(pair.reference)
         loaded = time.perf_counter()
         kwargs = {**options.compute, **pair.compute_options()}
+        check_measurable(m.n_occupied, pair.map_text)
+        check_threshold(kwargs.get("threshold", 2.0), ref.shape)
         with warnings.catch_warnings():  # the row's status says it
             warnings.simplefilter("ignore", NothingFoundWarning)
             result = compute_brokenness(m, ref, **kwargs)
@@ -304,25 +312,207 @@ def _run_inline(pairs: Sequence[Pair], out: Path, options: PairOptions, done: Ca
         done(evaluate_pair(pair, out, options))
 
 
+# -- local worker processes -------------------------------------------------------------------
+#: Environment variable limiting the address space of each local worker process (bytes, or
+#: with a K/M/G suffix): a pair that needs more fails with a MemoryError row instead of
+#: waking the OOM killer.
+WORKER_MEMORY_ENV = "BROKENNESS_WORKER_MEMORY"
+#: Seconds between two checks of a worker that its batch process is still alive.
+PARENT_CHECK_SECONDS = 0.5
+#: Modules the fork server imports once, so that every worker starts warm.
+_PRELOAD = ("brokenness.batch.runner", "brokenness.measure", "brokenness.report.results")
+_PR_SET_PDEATHSIG = 1
+
+
+def parse_memory(text: str) -> int:
+    """Bytes from ``"4G"``, ``"512M"``, ``"1500000000"``... (binary units).
+
+    Raises
+    ------
+    ParameterError
+        If ``text`` is not a positive size.
+
+    Examples
+    --------
+    >>> parse_memory("2G")
+    2147483648
+    """
+    units = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
+    t = text.strip().upper().removesuffix("B").removesuffix("I")
+    unit = t[-1:] if t[-1:] in units else ""
+    try:
+        value = float(t[: len(t) - len(unit)]) * units[unit]
+    except ValueError:
+        value = -1.0
+    if not (1 <= value < 2**63):
+        raise ParameterError(f"{WORKER_MEMORY_ENV} must be a size such as 4G, got {text!r}")
+    return int(value)
+
+
+def _alive(pid: int) -> bool:
+    """True while process ``pid`` exists and is not a zombie."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            state = fh.read().rsplit(b")", 1)[-1].split()[0]
+    except (OSError, IndexError):
+        return True
+    return state not in (b"Z", b"X")
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        time.sleep(PARENT_CHECK_SECONDS)
+        if not _alive(parent_pid):
+            os._exit(1)  # the batch is gone: stop computing for nobody
+
+
+def _worker_setup(parent_pid: int) -> None:
+    """In a worker: ignore Ctrl-C (the batch process handles it), die with the batch process
+    (a parent-death signal from the fork server, and a thread watching the batch process),
+    and apply ``$BROKENNESS_WORKER_MEMORY``."""
+    import signal
+    import threading
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the watching thread still does it
+        pass
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
+    limit = os.environ.get(WORKER_MEMORY_ENV)
+    if limit:
+        import resource
+
+        size = parse_memory(limit)
+        resource.setrlimit(resource.RLIMIT_AS, (size, size))
+
+
+_PR_SET_NAME = 15
+
+
+def _name_process(name: str) -> None:
+    """Set the process name ``ps`` and ``/proc/PID/comm`` show (Linux; 15 bytes)."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_NAME, ctypes.c_char_p(name.encode()[:15]), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _worker_main(pair: Pair, out: Path, options: PairOptions, conn: Any, parent_pid: int) -> None:
+    """Body of a worker process: evaluate one pair and send its row back.
+
+    The process is named ``bk-<pair id>`` (``ps``, ``/proc/PID/comm``), so that one can
+    see which pair each worker evaluates.
+    """
+    try:
+        _worker_setup(parent_pid)
+        _name_process(f"bk-{pair.id}")
+        row = evaluate_pair(pair, out, options)
+    except BaseException as exc:  # noqa: BLE001 - anything becomes this pair's error row
+        row = RowResult.failed(pair, f"worker failed: {one_line(exc)}")
+        record_error(out, pair, row.error or "")
+    try:
+        conn.send(row)
+    finally:
+        conn.close()
+
+
+def death_message(exitcode: int | None) -> str:
+    """Why a worker ended without a result, from its exit code.
+
+    Examples
+    --------
+    >>> death_message(-9)
+    'worker killed by SIGKILL while evaluating this pair: out of memory?'
+    """
+    import signal
+
+    if exitcode is not None and exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = f"signal {-exitcode}"
+        hint = ": out of memory?" if -exitcode == signal.SIGKILL else ""
+        return f"worker killed by {name} while evaluating this pair{hint}"
+    return f"worker exited with status {exitcode} without a result"
+
+
 def _run_pool(
     pairs: Sequence[Pair], out: Path, options: PairOptions, done: Callable, workers: int
 ) -> None:
-    # forkserver: workers do not inherit the threads (progress refresh) of this process
+    """Evaluate the pairs in worker processes, at most ``workers`` at a time.
+
+    Each pair gets a fresh process from a fork server (``forkserver``: workers do not
+    inherit the threads, such as the progress bar's, of this process): a worker that dies
+    (the OOM killer's SIGKILL, a crash) costs only its own pair, whose error row says how it
+    died, and the next pairs go on in new processes. On any exception (Ctrl-C) the pairs not
+    started are dropped, the running workers are stopped and waited for, and only then does
+    the exception go on: nothing is left running behind the caller.
+    """
+    from multiprocessing.connection import wait
+
     ctx = multiprocessing.get_context("forkserver")
-    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(evaluate_pair, p, out, options): p for p in pairs}
-        try:
-            for fut in cf.as_completed(futures):
-                pair = futures[fut]
+    ctx.set_forkserver_preload(list(_PRELOAD))
+    pending = list(reversed(pairs))
+    running: dict[Any, tuple[Any, Pair, float]] = {}
+    parent = os.getpid()
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                pair = pending.pop()
+                recv, send = ctx.Pipe(duplex=False)
+                proc = ctx.Process(
+                    target=_worker_main,
+                    args=(pair, out, options, send, parent),
+                    name=f"brokenness-pair-{pair.id}",
+                    daemon=True,
+                )
+                proc.start()
+                send.close()
+                running[recv] = (proc, pair, time.perf_counter())
+            for ready in wait(list(running)):
+                conn: Any = ready
+                proc, pair, started = running.pop(conn)
+                row: Any
                 try:
-                    row = fut.result()
-                except Exception as exc:  # a worker died (out of memory, killed...)
-                    row = RowResult.failed(pair, f"worker failed: {one_line(exc)}")
-                    record_error(out, pair, row.error or "")
+                    row = conn.recv()
+                except Exception:  # noqa: BLE001 - EOF: the worker died before answering
+                    row = None
+                conn.close()
+                proc.join()
+                if not isinstance(row, RowResult):
+                    message = death_message(proc.exitcode)
+                    row = RowResult.failed(pair, message, time.perf_counter() - started)
+                    record_error(out, pair, message)
                 done(row)
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+    finally:
+        _stop(running)
+
+
+def _stop(running: Mapping[Any, tuple[Any, Pair, float]]) -> None:
+    """Terminate the running workers and wait until every one has exited."""
+    for proc, _pair, _t in running.values():
+        if proc.is_alive():
+            proc.terminate()
+    for conn, (proc, _pair, _t) in running.items():
+        proc.join(5.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
+        conn.close()
 
 
 def _import_distributed() -> Any:
@@ -483,15 +673,90 @@ def _write_summary(out: Path, rows: Sequence[RowResult]) -> tuple[Path, Path]:
 
 
 # -- the batch --------------------------------------------------------------------------------
-def _previous(pair: Pair, out: Path) -> RowResult | None:
+def _previous(pair: Pair, out: Path, status: str = STATUS_SKIPPED) -> RowResult | None:
+    """The row of ``pair``'s result zip in ``out``, or ``None`` if there is none or it is
+    damaged (then the pair is evaluated again)."""
     path = out / pair.result_name
     if not path.is_file():
         return None
     try:
         record = load_results(path)
-    except ResultFileError:
+        return RowResult.from_record(pair, record, status)
+    except (ResultFileError, KeyError, TypeError, ValueError, OverflowError):
         return None  # damaged: evaluate again (the new file replaces it atomically)
-    return RowResult.from_record(pair, record, STATUS_SKIPPED)
+
+
+#: Most worker processes (or Dask workers of a local cluster) a batch starts.
+MAX_WORKERS = 256
+#: File in the output folder that a running batch holds locked.
+LOCK_NAME = ".brokenness-batch.lock"
+
+
+class BatchLockedError(BrokennessError, RuntimeError):
+    """Another batch is writing into the same output folder."""
+
+
+@contextlib.contextmanager
+def lock_folder(out: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``out`` (``fcntl.flock`` of :data:`LOCK_NAME`).
+
+    The lock is released when the block ends, and by the kernel when the process dies, so a
+    killed batch never leaves a stale lock.
+
+    Raises
+    ------
+    BatchLockedError
+        If another process holds the lock.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield
+        return
+    path = out / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+    except OSError as exc:
+        reason = exc.strerror or exc
+        raise ParameterError(f"{out}: cannot write into the output folder ({reason})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            raise BatchLockedError(
+                f"{out}: another batch (pid {holder}) is writing into this folder; wait for "
+                "it to finish or use another --out"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def check_options(options: Mapping[str, Any]) -> None:
+    """Options of :func:`brokenness.compute_brokenness` for a batch, checked before any work.
+
+    Raises
+    ------
+    ParameterError
+        For an option ``compute_brokenness`` does not have, or a threshold out of range.
+    """
+    import inspect
+
+    from ..limits import check_threshold
+    from ..measure import compute_brokenness
+
+    known = set(inspect.signature(compute_brokenness).parameters) - {"map", "reference"}
+    unknown = sorted(str(k) for k in options if k not in known)
+    if unknown:
+        raise ParameterError(
+            f"unknown option(s) {', '.join(unknown)} (compute_brokenness takes "
+            f"{', '.join(sorted(known))})"
+        )
+    if "threshold" in options:
+        check_threshold(options["threshold"])
 
 
 def run_batch(
@@ -531,12 +796,6 @@ def run_batch(
     console : rich.console.Console, optional
         Where the progress bar goes.
 
-    Notes
-    -----
-    The local pool starts its processes with ``forkserver``, which imports the caller's
-    main module in each worker: a script that calls ``run_batch(..., workers=2)`` needs the
-    usual ``if __name__ == "__main__":`` guard (without it every pair fails with a
-    ``BrokenProcessPool`` error row). The ``brokenness batch`` command has it.
     connect_timeout : float
         Seconds to wait for the Dask scheduler at ``scheduler``.
 
@@ -549,14 +808,26 @@ def run_batch(
     ManifestError
         If the manifest is bad.
     ParameterError
-        For bad options, a missing Dask, or an unreachable scheduler.
+        For bad options (unknown, or out of range), a missing Dask, or an unreachable
+        scheduler.
+    BatchLockedError
+        If another batch is writing into ``out_dir``.
 
     Notes
     -----
-    The local pool starts its workers with the ``forkserver`` method, which imports the
-    calling script again: a script that calls ``run_batch`` with ``workers > 1`` must do so
-    under ``if __name__ == "__main__":`` (as every multiprocessing program must), otherwise
-    every pair ends as a "worker failed" error row.
+    With ``workers > 1`` every pair is evaluated in its own process, started by a
+    ``forkserver`` (at most ``workers`` at a time). A worker that dies (SIGKILL from the OOM
+    killer, a crash) costs only its pair: its error row says how it died ("worker killed by
+    SIGKILL while evaluating this pair: out of memory?") and the other pairs go on. Workers
+    ignore Ctrl-C and exit when the batch process dies; on Ctrl-C the pairs not started are
+    dropped, the running workers are stopped, and the summary is written only once they have
+    exited (a pair whose zip was written counts as done). ``$BROKENNESS_WORKER_MEMORY``
+    (e.g. ``4G``) bounds each worker's address space. ``workers=1`` evaluates the pairs in
+    this process, without that isolation.
+
+    The output folder is locked (``.brokenness-batch.lock``) for the whole run: a second
+    batch on the same folder is refused with :class:`BatchLockedError`. A damaged result zip
+    found there (resume) is evaluated again.
 
     Examples
     --------
@@ -570,15 +841,37 @@ def run_batch(
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
         raise ParameterError(f"workers must be at least 1, got {workers}")
+    if n_workers > MAX_WORKERS:
+        raise ParameterError(f"workers must be at most {MAX_WORKERS}, got {workers}")
     if options is None:
         opts = PairOptions(dict(man.options))
     elif isinstance(options, PairOptions):
         opts = replace(options, compute={**man.options, **options.compute})
     else:
         opts = PairOptions({**man.options, **dict(options)})
+    check_options(opts.compute)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{out}: cannot create the output folder ({exc.strerror})") from None
+    with lock_folder(out):
+        return _run_locked(
+            man, out, opts, n_workers, scheduler, local_cluster, progress, console, connect_timeout
+        )
 
+
+def _run_locked(
+    man: Manifest,
+    out: Path,
+    opts: PairOptions,
+    n_workers: int,
+    scheduler: str | None,
+    local_cluster: bool,
+    progress: bool,
+    console: Console | None,
+    connect_timeout: float,
+) -> BatchSummary:
     rows: dict[str, RowResult] = {}
     todo: list[Pair] = []
     for pair in man.pairs:
@@ -589,8 +882,11 @@ def run_batch(
             rows[pair.id] = prev
 
     def finish() -> BatchSummary:
+        # a pair without a row may still have finished (its worker wrote the zip, then was
+        # stopped by Ctrl-C before it could answer): the files on disk decide
         ordered = tuple(
             rows.get(p.id)
+            or _previous(p, out, STATUS_DONE)
             or RowResult(p.id, p.row, STATUS_NOT_RUN, p.map_text, p.reference_text, p.labels)
             for p in man.pairs
         )
@@ -627,7 +923,7 @@ def run_batch(
                     workers=n_workers,
                     connect_timeout=connect_timeout,
                 )
-            elif n_workers == 1 or len(todo) == 1:
+            elif n_workers == 1:
                 _run_inline(todo, out, opts, done)
             else:
                 _run_pool(todo, out, opts, done, min(n_workers, len(todo)))

@@ -7,12 +7,14 @@ in ``DIR`` are skipped, so re-running the same command after a crash or Ctrl-C r
 Exit codes: 0 when every pair has a result (evaluated now or before); 1 when the batch ran
 to the end but some pairs failed (bad map file...): their error rows are in the summary and
 in ``<pair>.error.json``, and re-running retries exactly those; 2 when nothing could be run
-(bad manifest, bad option, unreachable Dask scheduler); 130 on Ctrl-C.
+(bad manifest, bad option, output folder locked by another batch, unreachable Dask
+scheduler); 130 on Ctrl-C or SIGTERM (the summary is written once the workers have stopped).
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from typing import Any
 
@@ -91,6 +93,10 @@ def _compute_options(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in given.items() if v is not None}
 
 
+def _terminated(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the batch and print where the results are."""
     from rich.console import Console
@@ -98,19 +104,28 @@ def run(args: argparse.Namespace) -> int:
 
     from ..batch import read_manifest, run_batch
     from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_NOT_MEASURED, STATUS_SKIPPED
+    from ..limits import check_threshold
+    from ._outputs import check_output_folder
 
+    check_output_folder(args.out, "--out")
+    if args.threshold is not None:
+        check_threshold(args.threshold)
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
     console = Console(stderr=True)
-    summary = run_batch(
-        manifest,
-        args.out,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        local_cluster=args.local_cluster,
-        options=_compute_options(args),
-        progress=not args.no_progress,
-        console=console,
-    )
+    previous = signal.signal(signal.SIGTERM, _terminated)  # stop cleanly, as on Ctrl-C
+    try:
+        summary = run_batch(
+            manifest,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            local_cluster=args.local_cluster,
+            options=_compute_options(args),
+            progress=not args.no_progress,
+            console=console,
+        )
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     done, skipped = summary.count(STATUS_DONE), summary.count(STATUS_SKIPPED)
     not_measured = summary.count(STATUS_NOT_MEASURED)
     failed = [r for r in summary.rows if r.status == STATUS_ERROR]

@@ -55,6 +55,10 @@ def add_parser(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+#: Largest ``--dpi`` of a plot (a larger one would allocate a huge canvas).
+MAX_DPI = 1200
+
+
 def run(args: argparse.Namespace) -> int:
     """Collect the results, print the table, write what was asked for."""
     from rich.console import Console
@@ -66,8 +70,14 @@ def run(args: argparse.Namespace) -> int:
 
     if args.table:
         table_format(args.table)  # a bad suffix fails before any work
-    if args.dpi <= 0:
-        raise ParameterError(f"--dpi must be positive, got {args.dpi}")
+    if not 0 < args.dpi <= MAX_DPI:
+        raise ParameterError(f"--dpi must be in 1..{MAX_DPI}, got {args.dpi}")
+    from ._outputs import check_output_file, figure_suffixes
+
+    if args.table:
+        check_output_file(args.table, "--table", (".csv", ".md", ".markdown"))
+    if args.plot:
+        check_output_file(args.plot, "--plot", figure_suffixes())
     entries = collect_results(args.results)
     table = group_table(entries, args.group_by)
     failed = sum(e.failed for e in entries)

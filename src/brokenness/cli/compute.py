@@ -57,12 +57,33 @@ def add_parser(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+def check_outputs(args: argparse.Namespace) -> None:
+    """Every file ``compute`` will write, checked before the maps are even loaded."""
+    from ._outputs import MAP_SUFFIXES, RESULT_SUFFIXES, check_output_file, figure_suffixes
+
+    if args.json and args.json != "-":
+        check_output_file(args.json, "--json")
+    if args.overlay:
+        check_output_file(args.overlay, "--overlay", figure_suffixes())
+    if args.save_results:
+        check_output_file(args.save_results, "--save-results", RESULT_SUFFIXES)
+    if args.repaired:
+        check_output_file(args.repaired, "--repaired", MAP_SUFFIXES)
+
+
 def run(args: argparse.Namespace) -> int:
     """Load the maps, compute, and write what was asked for."""
     from ..io import load_map
+    from ..limits import check_measurable, check_threshold
+    from ._outputs import check_seed
 
+    check_outputs(args)
+    check_seed(args.seed)
+    check_threshold(args.threshold)  # the neighbourhood it implies, before any map is read
     m = load_map(args.map, topic=args.topic)
     ref = load_map(args.reference, topic=args.topic)
+    check_measurable(m.n_occupied, args.map)
+    check_threshold(args.threshold, ref.shape)
     with warnings.catch_warnings():  # said once, below, as the result's reason
         warnings.simplefilter("ignore", NothingFoundWarning)
         result = compute_brokenness(

@@ -41,8 +41,12 @@ def build_parser() -> argparse.ArgumentParser:
         prog="brokenness",
         description="How structurally broken is an occupancy-grid map? (Birk, ICRA 2010)",
         epilog=(
-            "exit status: 0 done; 2 bad input or options (one line on stderr); "
-            "3 not measured (the map may not be of the reference's place); 130 interrupted"
+            "exit status: 0 done; 1 batch: some pairs failed (error rows in its summary); "
+            "2 bad input, option or output path (one line on stderr, before any work); "
+            "3 not measured (the map may not be of the reference's place); 130 interrupted "
+            "(Ctrl-C; SIGTERM for batch). Limits: BROKENNESS_MAX_CELLS (cells per map, "
+            "default 100000000), BROKENNESS_WORKER_MEMORY (address space per batch worker, "
+            "e.g. 4G); see the README's Reliability section"
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -81,7 +85,14 @@ def _run(args: argparse.Namespace) -> int:
         print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except OSError as exc:  # unwritable output path, disk full...
-        print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
+        print(f"brokenness {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        print(
+            f"brokenness {args.command}: error: out of memory (the input is too large for "
+            "this machine; see BROKENNESS_MAX_CELLS)",
+            file=sys.stderr,
+        )
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("brokenness: interrupted", file=sys.stderr)

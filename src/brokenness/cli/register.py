@@ -42,6 +42,11 @@ def add_parser(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Load both maps, register, and print (or write) the result."""
     from ..io import load_map
+    from ._outputs import check_output_file, check_seed
+
+    if args.json and args.json != "-":
+        check_output_file(args.json, "--json")
+    check_seed(args.seed)
     from ..registration.api import register
 
     ref = load_map(args.reference)

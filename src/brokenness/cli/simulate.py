@@ -92,6 +92,33 @@ def add_parser(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+#: Most maps one ``simulate`` call writes.
+MAX_COUNT = 100_000
+
+
+def _check_sizes(args: argparse.Namespace) -> None:
+    """Options that set sizes: checked (with the cells they imply) before any work."""
+    import math
+
+    from ..errors import ParameterError
+    from ..limits import check_cells, resolution_in_range
+    from ._outputs import check_output_folder
+
+    check_output_folder(args.out, "--out")
+    if args.count > MAX_COUNT:
+        raise ParameterError(f"--count must be at most {MAX_COUNT}, got {args.count}")
+    if not resolution_in_range(args.resolution):
+        raise ParameterError(f"--resolution must be in [1e-6, 1e4] metres, got {args.resolution}")
+    if not (math.isfinite(args.size) and args.size > 0):
+        raise ParameterError(f"--size must be a positive number of metres, got {args.size}")
+    side = args.size / args.resolution
+    check_cells(side, side, f"--size {args.size} at --resolution {args.resolution}: a map")
+    for name in ("bump_radius", "max_rotation", "min_rotation", "bump_probability"):
+        value = getattr(args, name)
+        if value is not None and not math.isfinite(value):
+            raise ParameterError(f"--{name.replace('_', '-')} must be finite, got {value}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Simulate ``--count`` maps and write them with their ground truth."""
     from ..errors import ParameterError
@@ -102,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--count must be at least 1, got {args.count}")
     if args.seed < 0:
         raise ParameterError(f"--seed must be >= 0, got {args.seed}")
+    _check_sizes(args)
     bump_options = {
         "degree": args.degree,
         "bumps": args.bumps,
@@ -113,7 +141,12 @@ def run(args: argparse.Namespace) -> int:
     }
     log = None
     if args.log is not None:
+        from pathlib import Path
+
+        from ..io._files import check_regular
         from ..simulation.carmen import read_carmen
+
+        check_regular(Path(args.log), "CARMEN log")  # no FIFO or device: it would never end
 
         log = read_carmen(args.log)
     for seed in range(args.seed, args.seed + args.count):

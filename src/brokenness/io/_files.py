@@ -6,12 +6,25 @@ command-line interface can print it as is.
 
 from __future__ import annotations
 
+import errno
+import os
+import stat
+from collections.abc import Callable
 from pathlib import Path
 
 from .. import _atomic
-from ..errors import MapError, MapFormatError
+from ..errors import MapError, MapFormatError, MapSizeError
+from ..limits import max_file_bytes
 
-__all__ = ["MapWarning", "atomic_write_bytes", "one_line", "read_file_bytes", "require_file"]
+__all__ = [
+    "MapWarning",
+    "atomic_write_bytes",
+    "check_regular",
+    "file_kind",
+    "one_line",
+    "read_file_bytes",
+    "require_file",
+]
 
 
 class MapWarning(UserWarning):
@@ -27,6 +40,72 @@ def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
+_KINDS: tuple[tuple[Callable[[int], bool], str], ...] = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def file_kind(mode: int) -> str:
+    """What a ``st_mode`` is, in words (``"a FIFO (named pipe)"``, ``"a regular file"``...)."""
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    for test, name in _KINDS:
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_regular(path: Path, what: str = "map file") -> os.stat_result:
+    """Stat ``path`` (following symbolic links) and require a regular file.
+
+    Nothing is opened: a FIFO, a device (``/dev/zero``...), a socket or a directory is refused
+    before any read could block or run forever.
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        What the file should be, for the message (``"map file"``, ``"manifest"``...).
+
+    Returns
+    -------
+    os.stat_result
+
+    Raises
+    ------
+    MapError
+        Missing (or a dangling symbolic link), a symbolic link loop, permission denied on the
+        way, or not a regular file.
+    """
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        if os.path.islink(path):
+            target = os.readlink(path)
+            raise MapError(f"{path}: no such file (broken symbolic link to {target})") from None
+        raise MapError(f"{path}: no such file") from None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise MapError(f"{path}: symbolic link loop (too many levels of links)") from None
+        if exc.errno == errno.EACCES:
+            raise MapError(f"{path}: cannot read the file (permission denied)") from None
+        if exc.errno == errno.ENOTDIR:
+            raise MapError(f"{path}: no such file (a part of the path is not a folder)") from None
+        reason = one_line(exc.strerror or exc)
+        raise MapError(f"{path}: cannot access the file ({reason})") from None
+    except ValueError as exc:  # embedded NUL byte
+        raise MapError(f"{path}: invalid file name ({one_line(exc)})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise MapError(f"{path}: is a directory, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise MapError(f"{path}: is {file_kind(st.st_mode)}, not a regular file: refused as {what}")
+    return st
+
+
 def require_file(path: Path) -> None:
     """Raise :class:`MapError` unless ``path`` is an existing regular file.
 
@@ -38,34 +117,75 @@ def require_file(path: Path) -> None:
     Raises
     ------
     MapError
-        If the path does not exist or is a directory.
+        If the path does not exist, is a directory, a FIFO, a device or a socket, or a
+        symbolic link loop (see :func:`check_regular`).
     """
-    if not path.exists():
-        raise MapError(f"{path}: no such file")
-    if path.is_dir():
-        raise MapError(f"{path}: is a directory, not a map file")
+    check_regular(path)
 
 
-def read_file_bytes(path: Path) -> bytes:
-    """Read a whole file, turning every OS failure into a one-line :class:`MapError`.
+def read_file_bytes(path: Path, limit: int | None = None, what: str = "map file") -> bytes:
+    """Read a whole regular file of at most ``limit`` bytes; OS failures become one-line errors.
+
+    The file is checked with :func:`check_regular` before it is opened, opened without
+    blocking, checked again on the open descriptor (so a file swapped for a FIFO in between is
+    still refused), and read only if its size is within the limit; at most ``limit + 1`` bytes
+    are ever read.
+
+    Parameters
+    ----------
+    path : Path
+    limit : int, optional
+        Largest size in bytes (default :func:`brokenness.limits.max_file_bytes`).
+    what : str
+        What the file should be, for messages.
 
     Raises
     ------
     MapError
-        Missing, a directory, not readable (permissions) or another OS error.
+        Missing, not a regular file, not readable (permissions) or another OS error.
+    MapSizeError
+        If the file is larger than ``limit``.
     MapFormatError
         If the file is empty.
     """
-    require_file(path)
+    cap = max_file_bytes() if limit is None else int(limit)
+    st = check_regular(path, what)
+    _check_size(path, st.st_size, cap, what)
     try:
-        data = path.read_bytes()
+        fd = open_nonblocking(path)
     except PermissionError:
         raise MapError(f"{path}: cannot read the file (permission denied)") from None
     except OSError as exc:
         raise MapError(f"{path}: cannot read the file ({one_line(exc.strerror or exc)})") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise MapError(f"{path}: is {file_kind(st.st_mode)}, not a regular file")
+        _check_size(path, st.st_size, cap, what)
+        with os.fdopen(fd, "rb", closefd=False) as fh:
+            data = fh.read(cap + 1)
+    except OSError as exc:
+        raise MapError(f"{path}: cannot read the file ({one_line(exc.strerror or exc)})") from None
+    finally:
+        os.close(fd)
+    if len(data) > cap:
+        raise MapSizeError(f"{path}: the {what} is larger than the limit of {cap} bytes")
     if not data:
         raise MapFormatError(f"{path}: empty file")
     return data
+
+
+def open_nonblocking(path: Path) -> int:
+    """``os.open`` for reading that never blocks (``O_NONBLOCK``: a FIFO cannot hang it)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    return os.open(path, flags | getattr(os, "O_CLOEXEC", 0))
+
+
+def _check_size(path: Path, size: int, cap: int, what: str) -> None:
+    if size > cap:
+        raise MapSizeError(
+            f"{path}: the {what} has {size} bytes, more than the limit of {cap} bytes"
+        )
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:

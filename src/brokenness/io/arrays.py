@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapError, MapFormatError, MapSizeError
-from ..grid import MAX_CELLS, OCCUPIED, UNKNOWN, OccupancyMap
+from ..grid import OCCUPIED, UNKNOWN, OccupancyMap
+from ..limits import max_cells
 from ._files import one_line, read_file_bytes
 
-__all__ = ["decode_npy", "encode_npy"]
+__all__ = ["check_npy_header", "decode_npy", "encode_npy"]
 
 
 def decode_npy(
@@ -40,28 +43,17 @@ def decode_npy(
     MapError
         Not 2D, NaN values, values out of range.
     MapSizeError
-        Larger than :data:`~brokenness.grid.MAX_CELLS` (checked from the header).
+        Larger than :func:`~brokenness.limits.max_cells`, whatever the number of dimensions
+        (checked from the header, before any allocation).
     """
     name = str(path)
-    data = read_file_bytes(path)
-    stream = io.BytesIO(data)
-    try:
-        version = np.lib.format.read_magic(stream)
-        if version == (1, 0):
-            shape, _, _ = np.lib.format.read_array_header_1_0(stream)
-        else:
-            shape, _, _ = np.lib.format.read_array_header_2_0(stream)
-    except Exception as exc:  # numpy raises ValueError or others on a bad header
-        raise MapFormatError(f"{name}: not a valid .npy file ({one_line(exc)})") from None
-    if len(shape) == 2 and shape[0] * shape[1] > MAX_CELLS:
-        raise MapSizeError(
-            f"{name}: array of {shape[1]}x{shape[0]} is larger than the limit of {MAX_CELLS} cells"
-        )
+    data = read_file_bytes(path, what=".npy array")
+    check_npy_header(data, name)  # every check on the header, before numpy allocates anything
     try:
         arr = np.load(io.BytesIO(data), allow_pickle=False)
     except ValueError as exc:
         raise MapFormatError(f"{name}: unreadable .npy array ({one_line(exc)})") from None
-    except (OSError, EOFError) as exc:
+    except Exception as exc:  # OSError, EOFError, struct errors on a damaged file
         raise MapFormatError(f"{name}: corrupt or truncated .npy file ({one_line(exc)})") from None
     if not isinstance(arr, np.ndarray):
         raise MapFormatError(f"{name}: not a single numpy array")
@@ -77,6 +69,61 @@ def decode_npy(
         return OccupancyMap.from_array(arr, resolution=resolution, origin=origin, source=name)
     except MapError as exc:
         raise type(exc)(f"{name}: {exc}") from None
+    except (TypeError, ValueError) as exc:  # complex, structured, string arrays...
+        raise MapFormatError(f"{name}: unsupported array ({one_line(exc)})") from None
+
+
+def check_npy_header(data: bytes, name: str) -> tuple[tuple[int, ...], np.dtype[Any]]:
+    """Validate the header of ``.npy`` bytes before numpy allocates the array.
+
+    Parameters
+    ----------
+    data : bytes
+        The whole ``.npy`` file.
+    name : str
+        The file, for messages.
+
+    Returns
+    -------
+    shape : tuple of int
+    dtype : numpy.dtype
+
+    Raises
+    ------
+    MapFormatError
+        A bad header, an object (pickled) array, or fewer data bytes than the header claims.
+    MapSizeError
+        More cells than :func:`~brokenness.limits.max_cells`, whatever the number of
+        dimensions.
+    MapError
+        Not a 2D array.
+    """
+    stream = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(stream)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
+        else:
+            shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
+    except Exception as exc:  # numpy raises ValueError or others on a bad header
+        raise MapFormatError(f"{name}: not a valid .npy file ({one_line(exc)})") from None
+    cells = math.prod(shape)
+    if cells > max_cells():
+        raise MapSizeError(
+            f"{name}: array of shape {shape} ({cells} cells) is larger than the limit of "
+            f"{max_cells()} cells"
+        )
+    if len(shape) != 2:
+        raise MapError(f"{name}: a map must be a 2D array, got shape {shape}")
+    if dtype.hasobject:
+        raise MapFormatError(f"{name}: unreadable .npy array (object arrays are refused)")
+    need = cells * dtype.itemsize
+    have = len(data) - stream.tell()
+    if need > have:
+        raise MapFormatError(
+            f"{name}: truncated .npy file ({have} of {need} bytes of data for shape {shape})"
+        )
+    return shape, dtype
 
 
 def encode_npy(states: NDArray[np.int8]) -> bytes:

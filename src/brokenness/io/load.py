@@ -8,7 +8,8 @@ from pathlib import Path
 
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
-from ._files import require_file
+from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MIN_RESOLUTION, resolution_in_range
+from ._files import check_regular
 from .arrays import decode_npy
 from .pixels import (
     DEFAULT_FREE_THRESH,
@@ -70,18 +71,23 @@ def _geometry(
     if resolution is not None:
         try:
             res = float(resolution)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError(f"resolution must be a number, got {resolution!r}") from None
-        if not res > 0 or res == float("inf"):
-            raise ParameterError(f"resolution must be a positive number of metres, got {res!r}")
+        if not resolution_in_range(res):
+            raise ParameterError(
+                f"resolution must be a number of metres in [{MIN_RESOLUTION:g}, "
+                f"{MAX_RESOLUTION:g}], got {res!r}"
+            )
         resolution = res
     if origin is not None:
         try:
             x, y, yaw = (float(v) for v in origin)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError(f"origin must be (x, y, yaw), got {origin!r}") from None
-        if not all(abs(v) < float("inf") for v in (x, y, yaw)):
-            raise ParameterError(f"origin must be three finite numbers, got {origin!r}")
+        if not all(abs(v) <= MAX_COORDINATE for v in (x, y, yaw)):
+            raise ParameterError(
+                f"origin must be three finite numbers within {MAX_COORDINATE:g}, got {origin!r}"
+            )
         origin = (x, y, yaw)
     return resolution, origin
 
@@ -136,12 +142,14 @@ def load_map(
     Raises
     ------
     MapError
-        Missing file, directory, unreadable file, image named by the YAML missing.
+        Missing file, directory, FIFO, device, socket or symbolic link loop (refused before
+        anything is opened), unreadable file, image named by the YAML missing.
     MapFormatError
         Empty, corrupt or truncated file; YAML that is not a map; invalid field; unsupported
         extension.
     MapSizeError
-        More than :data:`~brokenness.grid.MAX_CELLS` cells (checked before decoding).
+        More than :func:`~brokenness.limits.max_cells` cells (checked before decoding), or a
+        file larger than :func:`~brokenness.limits.max_file_bytes`.
     ParameterError
         Invalid ``mode``, ``resolution`` or ``origin`` argument.
 
@@ -159,7 +167,7 @@ def load_map(
     name = str(p)
 
     if is_rosbag(p):
-        bag = _load_bag(p, topic)
+        bag = _load_bag(p, topic)  # checks that every file it reads is a regular file
         if resolution is None and origin is None:
             return bag
         return OccupancyMap(
@@ -168,7 +176,7 @@ def load_map(
             origin if origin is not None else bag.origin,
             bag.source,
         )
-    require_file(p)
+    check_regular(p)  # before anything is opened: no FIFO, device, socket or directory
     suffix = p.suffix.lower()
 
     if suffix in YAML_SUFFIXES:
@@ -178,8 +186,12 @@ def load_map(
         meta = parse_map_yaml(doc, p)
         if meta.image.suffix.lower() in YAML_SUFFIXES | {".npy"} | BAG_SUFFIXES:
             raise MapFormatError(f"{name}: 'image' must be a raster image, got {meta.image.name}")
-        if not meta.image.exists():
+        if not os.path.lexists(meta.image):
             raise MapError(f"{name}: image file {meta.image} does not exist")
+        try:
+            check_regular(meta.image, "map image")
+        except MapError as exc:
+            raise MapError(f"{name}: 'image': {exc}") from None
         states = pixels_to_states(
             read_pixels(meta.image),
             mode=mode or meta.mode,

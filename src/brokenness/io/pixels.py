@@ -26,6 +26,7 @@ differences between pixels of equal value) and costs one vectorised gather.
 
 from __future__ import annotations
 
+import io
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +36,8 @@ from numpy.typing import NDArray
 from PIL import Image, UnidentifiedImageError
 
 from ..errors import MapFormatError, MapSizeError
-from ..grid import FREE, MAX_CELLS, OCCUPIED, UNKNOWN
+from ..grid import FREE, OCCUPIED, UNKNOWN
+from ..limits import check_cells
 from ._files import MapWarning, one_line, read_file_bytes
 from .pnm import PGM_MAGICS, decode_pgm
 
@@ -115,17 +117,13 @@ def _from_pillow(img: Image.Image, name: str) -> Pixels:
     raise MapFormatError(f"{name}: unsupported image mode {mode!r} (use a grey or colour image)")
 
 
-def _read_pillow(path: Path, name: str) -> Pixels:
+def _read_pillow(data: bytes, name: str) -> Pixels:
     try:
-        with Image.open(path) as img:
+        with Image.open(io.BytesIO(data)) as img:
             width, height = img.size
             if width == 0 or height == 0:
                 raise MapSizeError(f"{name}: image has a zero side ({width}x{height})")
-            if width * height > MAX_CELLS:
-                raise MapSizeError(
-                    f"{name}: image of {width}x{height} pixels is larger than the limit of "
-                    f"{MAX_CELLS} cells"
-                )
+            check_cells(height, width, f"{name}: image")
             img.load()
             return _from_pillow(img, name)
     except Image.DecompressionBombError as exc:
@@ -134,10 +132,11 @@ def _read_pillow(path: Path, name: str) -> Pixels:
         raise MapFormatError(f"{name}: not an image file Pillow can read") from None
     except MemoryError:
         raise MapSizeError(f"{name}: image too large to decode in memory") from None
-    except (OSError, SyntaxError, ValueError, EOFError) as exc:
-        if isinstance(exc, MapFormatError | MapSizeError):
-            raise
-        raise MapFormatError(f"{name}: corrupt or truncated image ({one_line(exc)})") from None
+    except (MapFormatError, MapSizeError):
+        raise
+    except Exception as exc:  # Pillow's plugins raise OSError, SyntaxError, struct.error...
+        reason = one_line(exc) or type(exc).__name__
+        raise MapFormatError(f"{name}: corrupt or truncated image ({reason})") from None
 
 
 def read_pixels(path: Path) -> Pixels:
@@ -152,20 +151,20 @@ def read_pixels(path: Path) -> Pixels:
     Raises
     ------
     MapError
-        Missing, directory or unreadable file.
+        Missing, not a regular file (directory, FIFO, device...) or unreadable file.
     MapFormatError
         Empty, corrupt or truncated file; unsupported image mode.
     MapSizeError
-        Image larger than :data:`~brokenness.grid.MAX_CELLS` (checked from the header, before
-        decoding) or refused by Pillow's decompression-bomb guard.
+        Image larger than :func:`~brokenness.limits.max_cells` (checked from the header,
+        before decoding), a file larger than :func:`~brokenness.limits.max_file_bytes`, or
+        an image refused by Pillow's decompression-bomb guard.
     """
     name = str(path)
-    data = read_file_bytes(path)
+    data = read_file_bytes(path, what="map image")  # a regular file within the size limit
     if data[:2] in PGM_MAGICS:
         pixels, maxval = decode_pgm(data, name)
         return Pixels(pixels, 1, maxval)
-    del data
-    return _read_pillow(path, name)
+    return _read_pillow(data, name)
 
 
 def _lut(

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapFormatError, MapSizeError
-from ..grid import MAX_CELLS
+from ..limits import check_cells
 
 __all__ = ["PGM_MAGICS", "decode_pgm", "encode_pgm"]
 
@@ -29,6 +29,7 @@ _SKIP = re.compile(rb"(?:[ \t\r\n\v\f]+|#[^\r\n]*(?:\r\n|\r|\n))*")
 _NUMBER = re.compile(rb"[0-9]{1,12}")
 _COMMENT = re.compile(rb"#[^\r\n]*")
 _WHITESPACE = b" \t\r\n\v\f"
+_MAX_REPEAT = 1 << 31  # below the regular expression engine's largest repeat count
 
 
 def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
@@ -49,11 +50,7 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
     width, height, maxval = values
     if width == 0 or height == 0:
         raise MapSizeError(f"{name}: PGM image has a zero side ({width}x{height})")
-    if width * height > MAX_CELLS:
-        raise MapSizeError(
-            f"{name}: PGM image of {width}x{height} pixels is larger than the limit of "
-            f"{MAX_CELLS} cells"
-        )
+    check_cells(height, width, f"{name}: PGM image")
     if not 1 <= maxval <= 65535:
         raise MapFormatError(f"{name}: invalid PGM maxval {maxval} (must be 1..65535)")
     return width, height, maxval, pos + 1
@@ -61,6 +58,14 @@ def _header(data: bytes, name: str) -> tuple[int, int, int, int]:
 
 def _parse_plain(body: bytes, count: int, name: str) -> NDArray[np.int64]:
     """Decimal samples of a plain PGM body (comments removed): numpy's C parser first."""
+    if len(body) > 8 * count + 4096 and count < _MAX_REPEAT:
+        # far more text than ``count`` samples need (6 bytes each at most, "65535 "): only
+        # the first ``count`` tokens are samples, so cut the rest off before numpy parses
+        # (and allocates) them; a tiny header cannot make it parse a huge body. Possessive
+        # quantifiers: the match never backtracks, it runs in linear time in C.
+        match = re.match(rb"(?:[ \t\r\n\v\f]*+[^ \t\r\n\v\f]++){%d}" % count, body)
+        if match is not None:
+            body = body[: match.end()]
     try:
         return np.fromstring(body, dtype=np.int64, sep=" ")
     except ValueError:
@@ -94,7 +99,7 @@ def decode_pgm(data: bytes, name: str) -> tuple[NDArray[np.unsignedinteger], int
     MapFormatError
         Bad magic or header, truncated pixel data, samples above ``maxval``.
     MapSizeError
-        If the header announces a zero side or more than :data:`~brokenness.grid.MAX_CELLS`
+        If the header announces a zero side or more than :func:`~brokenness.limits.max_cells`
         pixels (checked before decoding anything).
     """
     magic = data[:2]

@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 
 from ..errors import MapError, ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from ..limits import check_cells
 
 __all__ = ["cell_scale_offset", "common_resolution", "resample_to_resolution", "resampled_size"]
 
@@ -117,6 +118,9 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
     ------
     MapError
         If ``m`` has no resolution.
+    MapSizeError
+        If the resampled map would have more than :func:`~brokenness.limits.max_cells`
+        cells (checked before anything is allocated).
     ParameterError
         If ``resolution`` is not a positive finite number.
 
@@ -139,6 +143,8 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
         return m
     scale = m.resolution / new_res
     rows, cols = m.shape
+    # the size after resampling, checked before anything is allocated
+    check_cells(rows * scale, cols * scale, f"{m.source or 'map'}: resampled to {new_res:g} m")
     shape = (resampled_size(rows, scale), resampled_size(cols, scale))
     flipped = m.states[::-1]  # bottom row first: the origin corner is the anchor
     if scale < 1:

@@ -31,7 +31,9 @@ from typing import Any
 import yaml
 
 from ..errors import MapFormatError
-from ._files import one_line, read_file_bytes
+from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MAX_TEXT_BYTES, MIN_RESOLUTION
+from ._files import read_file_bytes
+from ._yaml import parse_yaml
 from .pixels import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, MODES
 
 __all__ = ["MapYaml", "dump_map_yaml", "is_rosbag2_metadata", "parse_map_yaml", "read_map_yaml"]
@@ -70,8 +72,9 @@ def _number(value: Any, key: str, name: str) -> float:
         raise MapFormatError(f"{name}: '{key}' must be a number, got {value!r}")
     try:
         number = float(value)
-    except ValueError:
-        raise MapFormatError(f"{name}: '{key}' must be a number, got {value!r}") from None
+    except (ValueError, OverflowError):
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+        raise MapFormatError(f"{name}: '{key}' must be a number, got {shown}") from None
     if not math.isfinite(number):
         raise MapFormatError(f"{name}: '{key}' must be finite, got {value!r}")
     return number
@@ -83,12 +86,13 @@ def is_rosbag2_metadata(doc: Any) -> bool:
 
 
 def load_yaml_document(path: Path) -> Any:
-    """Parse a YAML file with :func:`yaml.safe_load`; errors become :class:`MapFormatError`."""
-    data = read_file_bytes(path)
-    try:
-        return yaml.safe_load(data)
-    except yaml.YAMLError as exc:
-        raise MapFormatError(f"{path}: invalid YAML ({one_line(exc)})") from None
+    """Parse a YAML file of at most :data:`~brokenness.limits.MAX_TEXT_BYTES` bytes.
+
+    Uses :func:`brokenness.io._yaml.parse_yaml` (safe loader, duplicate keys refused); every
+    failure is a one-line :class:`MapFormatError` (or :class:`MapError` for the file itself).
+    """
+    data = read_file_bytes(path, MAX_TEXT_BYTES, "map YAML")
+    return parse_yaml(data, str(path))
 
 
 def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
@@ -108,9 +112,10 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     Raises
     ------
     MapFormatError
-        Not a mapping, ``image`` or ``resolution`` missing, a value of the wrong type or out
-        of range (resolution <= 0 or NaN, origin not 3 finite numbers, thresholds outside
-        [0, 1] or ``free_thresh >= occupied_thresh``, unknown ``mode``, ``negate`` not 0/1).
+        Not a mapping, a duplicate key, ``image`` or ``resolution`` missing, a value of the
+        wrong type or out of range (resolution NaN or outside [1e-6, 1e4] m, origin not 3
+        finite numbers within 1e9, thresholds outside [0, 1] or ``free_thresh >=
+        occupied_thresh``, unknown ``mode``, ``negate`` not 0/1).
     """
     name = str(path)
     if not isinstance(doc, dict):
@@ -125,6 +130,11 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     resolution = _number(doc["resolution"], "resolution", name)
     if resolution <= 0:
         raise MapFormatError(f"{name}: 'resolution' must be > 0, got {doc['resolution']!r}")
+    if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
+        raise MapFormatError(
+            f"{name}: 'resolution' {resolution!r} is outside the supported range "
+            f"[{MIN_RESOLUTION:g}, {MAX_RESOLUTION:g}] metres per cell"
+        )
 
     origin: tuple[float, float, float] | None = None
     if doc.get("origin") is not None:
@@ -132,6 +142,10 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
         if not isinstance(raw, list | tuple) or len(raw) != 3:
             raise MapFormatError(f"{name}: 'origin' must be [x, y, yaw], got {raw!r}")
         x, y, yaw = (_number(v, "origin", name) for v in raw)
+        if max(abs(x), abs(y), abs(yaw)) > MAX_COORDINATE:
+            raise MapFormatError(
+                f"{name}: 'origin' {raw!r} is out of range (|value| <= {MAX_COORDINATE:g})"
+            )
         origin = (x, y, yaw)
 
     negate_raw = doc.get("negate", 0)

@@ -42,7 +42,8 @@ import numpy as np
 
 from ..errors import MapError, MapFormatError
 from ..grid import OccupancyMap
-from ._files import one_line
+from ..limits import check_cells, resolution_in_range
+from ._files import check_regular, one_line
 
 __all__ = ["OCCUPANCY_GRID", "load_bag_map", "quaternion_yaw"]
 
@@ -70,9 +71,14 @@ def _grid_to_map(msg: Any, source: str) -> OccupancyMap:
     """An :class:`OccupancyMap` from a deserialised ``nav_msgs/OccupancyGrid``."""
     info = msg.info
     width, height = int(info.width), int(info.height)
-    data = np.asarray(msg.data)
     if width <= 0 or height <= 0:
         raise MapFormatError(f"{source}: the OccupancyGrid is empty ({width}x{height} cells)")
+    check_cells(height, width, f"{source}: OccupancyGrid")
+    if not resolution_in_range(float(info.resolution)):
+        raise MapFormatError(
+            f"{source}: the OccupancyGrid's resolution {float(info.resolution)!r} is out of range"
+        )
+    data = np.asarray(msg.data)
     if data.size != width * height:
         raise MapFormatError(
             f"{source}: the OccupancyGrid has {data.size} values for {width}x{height} cells"
@@ -163,6 +169,24 @@ def _inside_bag_folder(path: Path) -> bool:
         return False
 
 
+def _check_bag_files(p: Path) -> None:
+    """Every file the bag readers would open must be a regular file (no FIFO, no device).
+
+    A folder is a rosbag2 bag: its ``metadata.yaml`` and every storage file in it are checked.
+    """
+    if not p.is_dir():
+        check_regular(p, "rosbag")
+        if p.suffix.lower() in _STORAGE_SUFFIXES and os.path.lexists(p.parent / "metadata.yaml"):
+            check_regular(p.parent / "metadata.yaml", "rosbag2 metadata file")
+        return
+    meta = p / "metadata.yaml"
+    if os.path.lexists(meta):
+        check_regular(meta, "rosbag2 metadata file")
+    for item in sorted(p.iterdir()):
+        if item.suffix.lower() in _STORAGE_SUFFIXES:
+            check_regular(item, "rosbag2 storage file")
+
+
 def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> OccupancyMap:
     """Load the last ``nav_msgs/OccupancyGrid`` on ``topic`` from a ROS 1 or ROS 2 bag.
 
@@ -183,7 +207,8 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     Raises
     ------
     MapError
-        Missing path, no such topic, no message on the topic.
+        Missing path, a FIFO, device or socket among the bag's files (refused before
+        anything is opened), no such topic, no message on the topic.
     MapFormatError
         Corrupt or unreadable bag, a topic of another message type, an inconsistent grid.
 
@@ -195,11 +220,12 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     """
     p = Path(os.fspath(path))
     source = str(path)
-    if not p.exists():
+    if not os.path.lexists(p):
         raise MapError(f"{source}: no such file or folder")
     if not isinstance(topic, str) or not topic:
         raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
     suffix = p.suffix.lower()
+    _check_bag_files(p)
     try:
         if p.is_dir():
             if not (p / "metadata.yaml").is_file():

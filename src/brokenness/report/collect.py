@@ -9,7 +9,6 @@ JSON members of a zip are used, so the maps themselves are not needed.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import zipfile
@@ -18,7 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .results import ResultFileError, load_results
+from ..errors import BrokennessError
+from ..limits import MAX_TEXT_BYTES
+from .results import ResultFileError, load_results, parse_json
 
 __all__ = ["ERROR_SUFFIX", "ResultEntry", "collect_results", "label_names", "sort_key"]
 
@@ -82,12 +83,19 @@ def _labels(value: Any) -> dict[str, str]:
     return {str(k): str(v) for k, v in value.items() if v is not None and str(v) != ""}
 
 
+def _finite(value: Any) -> float:
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError("not finite")
+    return number
+
+
 def _from_zip(path: Path) -> ResultEntry:
     record = load_results(path)
     stats = record.stats
     parts = stats.get("partitions") or []
     try:
-        fractions = tuple(float(p["fraction"]) for p in parts)
+        fractions = tuple(_finite(p["fraction"]) for p in parts)
         degree = record.degree
     except (KeyError, TypeError, ValueError, OverflowError):
         raise ResultFileError(f"{path}: stats.json has no valid degree and partitions") from None
@@ -103,9 +111,13 @@ def _from_zip(path: Path) -> ResultEntry:
 
 
 def _from_error_file(path: Path) -> ResultEntry:
+    from ..io._files import read_file_bytes
+
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        doc = parse_json(read_file_bytes(path, MAX_TEXT_BYTES, "batch error file"))
+    except BrokennessError as exc:
+        raise ResultFileError(str(exc)) from None
+    except ValueError as exc:  # bad JSON, not UTF-8, non-finite numbers
         raise ResultFileError(f"{path}: unreadable error file ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != "brokenness-error":
         raise ResultFileError(f"{path}: not a brokenness error file")
@@ -143,8 +155,9 @@ def collect_results(paths: Iterable[str | os.PathLike[str]]) -> list[ResultEntry
     Raises
     ------
     ResultFileError
-        For a missing path, a file that is not a result zip, a damaged zip, a folder without
-        result files, or no paths at all.
+        For a missing path, a file that is not a regular file or not a result zip, a damaged
+        zip (see :func:`brokenness.report.load_results`), a folder without result files, or
+        no paths at all.
 
     Examples
     --------
@@ -161,8 +174,16 @@ def collect_results(paths: Iterable[str | os.PathLike[str]]) -> list[ResultEntry
             files += found
         elif p.is_file():
             files.append(p)
-        else:
+        elif not os.path.lexists(p):
             raise ResultFileError(f"{p}: no such result file or folder")
+        else:  # a FIFO, a device, a symbolic link loop...: say which
+            from ..io._files import check_regular
+
+            try:
+                check_regular(p, "result file")
+            except BrokennessError as exc:
+                raise ResultFileError(str(exc)) from None
+            files.append(p)
     if not files:
         raise ResultFileError("no result files given")
     seen: set[Path] = set()

@@ -97,7 +97,11 @@ def reference_in_map_frame(
 
 
 def overlay_image(
-    result: BrokennessResult, map: OccupancyMap, reference: OccupancyMap
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    *,
+    max_side: int | None = None,
 ) -> NDArray[np.float32]:
     """The overlay as an RGB float image in the map's grid, shape (rows, cols, 3).
 
@@ -106,10 +110,17 @@ def overlay_image(
     result : BrokennessResult
         The result of :func:`brokenness.compute_brokenness` for ``map`` and ``reference``.
     map, reference : OccupancyMap
+    max_side : int, optional
+        Largest side of the image: a larger map is reduced by the smallest integer factor
+        that fits, each block of cells showing its most telling cell (a partition, then an
+        unassigned cell, a reference wall, free space, unknown), so that thin walls never
+        vanish and the picture of a huge map costs little memory.
 
     Returns
     -------
     ndarray of float32 in [0, 1]
+        Shape ``(ceil(rows / f), ceil(cols / f), 3)`` with ``f`` the reduction factor (1
+        unless ``max_side`` asks for less).
 
     Raises
     ------
@@ -120,19 +131,34 @@ def overlay_image(
     if labels.shape != map.shape:
         raise MapError(f"result labels have shape {labels.shape} but the map has shape {map.shape}")
     t0 = result.partitions[0].transform if result.partitions else RigidTransform.identity()
-    rgb = np.empty(map.shape + (3,), dtype=np.float32)
-    rgb[...] = _UNKNOWN
-    rgb[map.free] = _FREE
-    rgb[reference_in_map_frame(reference, t0, map.shape)] = _REFERENCE_GREY
-    # one lookup table from label to colour: index 0 = UNASSIGNED, 1 = NOT_OCCUPIED (unused)
     n = len(result.partitions)
+    # one small class per cell, by priority: 0 unknown < 1 free < 2 reference wall
+    # < 3 unassigned < 4 + i partition i; one lookup table from class to colour
+    dtype = np.uint8 if n < 250 else np.uint16
+    classes = np.zeros(map.shape, dtype=dtype)
+    classes[map.free] = 1
+    classes[reference_in_map_frame(reference, t0, map.shape)] = 2
+    classes[labels == UNASSIGNED] = 3
+    assigned = labels >= 0
+    classes[assigned] = labels[assigned].astype(dtype) + 4
+    del assigned
+    if max_side is not None and max(map.shape) > max_side:
+        classes = _block_max(classes, -(-max(map.shape) // max(int(max_side), 1)))
     lut = np.array(
-        [_UNASSIGNED, _UNASSIGNED] + [to_rgb(partition_colour(i)) for i in range(n)],
+        [_UNKNOWN, _FREE, _REFERENCE_GREY, _UNASSIGNED]
+        + [to_rgb(partition_colour(i)) for i in range(n)],
         dtype=np.float32,
     )
-    occupied = (labels == UNASSIGNED) | (labels >= 0)
-    rgb[occupied] = lut[labels[occupied].astype(np.intp) + 2]
-    return rgb
+    return lut[classes]
+
+
+def _block_max(image: NDArray[np.integer], factor: int) -> NDArray[np.integer]:
+    """Maximum over blocks of ``factor`` x ``factor`` cells (zero padding at the far edges)."""
+    rows, cols = image.shape
+    r, c = -(-rows // factor), -(-cols // factor)
+    padded = np.zeros((r * factor, c * factor), dtype=image.dtype)
+    padded[:rows, :cols] = image
+    return padded.reshape(r, factor, c, factor).max(axis=(1, 3))
 
 
 def _legend_handles(result: BrokennessResult) -> list[Patch]:
@@ -181,7 +207,9 @@ def overlay_figure(
     """
     if dpi <= 0 or width_inches <= 0:
         raise MapError("dpi and width must be positive")
-    rgb = overlay_image(result, map, reference)
+    # at most about two image pixels per picture pixel: a huge map is reduced (walls kept)
+    # before matplotlib, which would otherwise resample it in float64 RGBA at full size
+    rgb = overlay_image(result, map, reference, max_side=max(int(2 * width_inches * dpi), 1024))
     rows, cols = map.shape
     handles = _legend_handles(result)
     ncols = 1 if len(handles) <= 3 else 2
@@ -193,7 +221,13 @@ def overlay_figure(
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     # "nearest" when a cell covers several pixels, smoothing only when cells are smaller
-    ax.imshow(rgb, interpolation="antialiased", interpolation_stage="rgba", origin="upper")
+    ax.imshow(
+        rgb,
+        interpolation="antialiased",
+        interpolation_stage="rgba",
+        origin="upper",
+        extent=(-0.5, cols - 0.5, rows - 0.5, -0.5),  # axes in map cells, even when reduced
+    )
     ax.set_xlabel("column (cells)")
     ax.set_ylabel("row (cells)")
     if title is None:

@@ -42,6 +42,7 @@ from .. import __version__
 from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError
 from ..grid import OccupancyMap
+from ..limits import max_cells, max_file_bytes
 from ..measure.result import BrokennessResult
 from ..transform import RigidTransform
 from .overlay import render_overlay
@@ -56,6 +57,7 @@ __all__ = [
     "build_stats",
     "file_sha256",
     "load_results",
+    "parse_json",
     "save_results",
 ]
 
@@ -321,8 +323,72 @@ def save_results(
     return ResultRecord(info_dict, stats, labels, members["overlay.png"], Path(path))
 
 
+#: Largest ``info.json`` / ``stats.json`` accepted in a result file (declared size), bytes.
+MAX_JSON_MEMBER_BYTES: int = 16 << 20
+#: Largest ``overlay.png`` accepted in a result file (declared size), bytes.
+MAX_OVERLAY_MEMBER_BYTES: int = 64 << 20
+
+
+def _reject_constant(value: str) -> Any:
+    raise ValueError(f"non-finite number {value}")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"non-finite number {text}")
+    return value
+
+
+def parse_json(data: bytes | str) -> Any:
+    """Strict JSON: ``NaN``, ``Infinity`` and overflowing numbers (``1e400``) are refused.
+
+    Raises
+    ------
+    ValueError
+        For invalid JSON (:class:`json.JSONDecodeError`), non-finite numbers, text that is
+        not UTF-8, or nesting too deep.
+    """
+    try:
+        return json.loads(data, parse_constant=_reject_constant, parse_float=_finite_float)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
+
+
+def _member_limits() -> dict[str, int]:
+    return {
+        "info.json": MAX_JSON_MEMBER_BYTES,
+        "stats.json": MAX_JSON_MEMBER_BYTES,
+        "labels.npy": 2 * max_cells() + (1 << 16),  # int16 labels and the .npy header
+        "overlay.png": MAX_OVERLAY_MEMBER_BYTES,
+    }
+
+
+def _read_member(zf: zipfile.ZipFile, name: str, limit: int, p: Path) -> bytes:
+    """A member's bytes, refused from its declared size before anything is inflated.
+
+    ``zipfile`` never inflates more than a member's declared ``file_size`` (and checks its
+    CRC), so the bound on the declared size bounds the memory.
+    """
+    member = zf.getinfo(name)
+    if member.file_size > limit:
+        raise ResultFileError(
+            f"{p}: {name} declares {member.file_size} bytes uncompressed, more than the "
+            f"limit of {limit} bytes"
+        )
+    return zf.read(member)
+
+
+def _degree_ok(value: Any) -> bool:
+    return value is None or (isinstance(value, int) and not isinstance(value, bool) and value >= 0)
+
+
 def load_results(path: str | os.PathLike[str]) -> ResultRecord:
     """Read a result file written by :func:`save_results`.
+
+    Every member's declared uncompressed size is checked before it is read (a zip bomb is
+    refused, not inflated); JSON with ``NaN`` or ``Infinity`` is refused; every failure of the
+    zip, zlib, JSON and numpy readers becomes a one-line :class:`ResultFileError`.
 
     Parameters
     ----------
@@ -335,29 +401,66 @@ def load_results(path: str | os.PathLike[str]) -> ResultRecord:
     Raises
     ------
     ResultFileError
-        If the file is missing, not a zip, or not a brokenness result file.
+        If the file is missing, not a regular file, too large, not a zip, damaged, or not a
+        brokenness result file.
     """
+    from ..io._files import check_regular, open_nonblocking
+    from ..io.arrays import check_npy_header
+
     p = Path(path)
-    if not p.is_file():
-        raise ResultFileError(f"{p}: no such result file")
     try:
-        with zipfile.ZipFile(p) as zf:
+        st = check_regular(p, "result file")
+    except BrokennessError as exc:
+        text = str(exc)
+        if "no such file" in text:
+            text = f"{p}: no such result file"
+        raise ResultFileError(text) from None
+    if st.st_size > max_file_bytes():
+        raise ResultFileError(
+            f"{p}: {st.st_size} bytes, more than the limit of {max_file_bytes()} bytes"
+        )
+    limits = _member_limits()
+    try:
+        with os.fdopen(open_nonblocking(p), "rb") as fh, zipfile.ZipFile(fh) as zf:
             names = set(zf.namelist())
             missing = [m for m in _MEMBERS if m not in names]
             if missing:
                 raise ResultFileError(f"{p}: not a brokenness result file (no {missing[0]})")
-            info = json.loads(zf.read("info.json"))
-            stats = json.loads(zf.read("stats.json"))
-            labels = np.load(io.BytesIO(zf.read("labels.npy")), allow_pickle=False)
-            overlay = zf.read("overlay.png")
+            raw = {m: _read_member(zf, m, limits[m], p) for m in _MEMBERS}
+        info = parse_json(raw["info.json"])
+        stats = parse_json(raw["stats.json"])
+        check_npy_header(raw["labels.npy"], f"{p}: labels.npy")
+        labels = np.load(io.BytesIO(raw["labels.npy"]), allow_pickle=False)
+        overlay = raw["overlay.png"]
     except ResultFileError:
         raise
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
-        raise ResultFileError(f"{p}: not a valid zip file ({exc})") from None
-    except (ValueError, OSError) as exc:  # bad JSON / npy inside, read errors
+    except BrokennessError as exc:  # the labels' header
         raise ResultFileError(f"{p}: damaged result file ({exc})") from None
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as exc:
+        raise ResultFileError(f"{p}: not a valid zip file ({_one_line(exc)})") from None
+    except MemoryError:
+        raise ResultFileError(f"{p}: damaged result file (too large to read)") from None
+    except Exception as exc:  # zlib.error, bad JSON / npy inside, unsupported zip features
+        reason = _one_line(exc) or type(exc).__name__
+        raise ResultFileError(f"{p}: damaged result file ({reason})") from None
     if not isinstance(info, dict) or info.get("format") != FORMAT_NAME:
         raise ResultFileError(f"{p}: not a brokenness result file")
     if not isinstance(stats, dict) or "degree" not in stats:
         raise ResultFileError(f"{p}: stats.json has no degree")
-    return ResultRecord(info, stats, labels.astype(np.int16, copy=False), overlay, p)
+    if not _degree_ok(stats["degree"]):
+        raise ResultFileError(
+            f"{p}: stats.json has an invalid degree {str(stats['degree'])[:40]!r}"
+        )
+    if not isinstance(stats.get("partitions", []), list):
+        raise ResultFileError(f"{p}: stats.json has invalid partitions")
+    if not isinstance(labels, np.ndarray) or labels.ndim != 2:
+        raise ResultFileError(f"{p}: labels.npy is not a 2D array")
+    try:
+        labels16 = labels.astype(np.int16, copy=False)
+    except (TypeError, ValueError) as exc:
+        raise ResultFileError(f"{p}: labels.npy is not an integer array ({exc})") from None
+    return ResultRecord(info, stats, labels16, overlay, p)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
