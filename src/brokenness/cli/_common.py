@@ -43,10 +43,15 @@ def console(*, stderr: bool = False) -> Any:
     """
     from rich.console import Console
 
+    class _Console(Console):
+        def on_broken_pipe(self) -> None:  # rich exits with 1; the command line says 141
+            self.quiet = True
+            raise BrokenPipeError(32, "Broken pipe")
+
     stream = sys.stderr if stderr else sys.stdout
     tty = stream.isatty()
     width = None if tty else 10_000
-    return Console(file=stream, width=width, soft_wrap=not tty, highlight=False)
+    return _Console(file=stream, width=width, soft_wrap=not tty, highlight=False)
 
 
 def add_verbosity(p: argparse.ArgumentParser) -> None:

@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     """Load the maps, compute, and write what was asked for."""
     labels = parse_labels(args.label)
     m, ref = load_pair(args)
-    with warnings.catch_warnings():  # said once, below, as the result's reason
+    with _busy(args, m), warnings.catch_warnings():  # not measured: said below, as the reason
         warnings.simplefilter("ignore", NothingFoundWarning)
         result = compute_brokenness(
             m,
@@ -144,6 +144,16 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         _print_summary(result, m, ref, verbose=args.verbose)
     return status
+
+
+def _busy(args: argparse.Namespace, m: OccupancyMap) -> Any:
+    """A spinner on a terminal (stderr) while a large map is computed; nothing otherwise."""
+    import contextlib
+
+    if args.quiet or not sys.stderr.isatty() or m.states.size < 4_000_000:
+        return contextlib.nullcontext()
+    rows, cols = m.shape
+    return console(stderr=True).status(f"computing the brokenness of a {cols}x{rows} map...")
 
 
 def _warn_if_mirrored(m: OccupancyMap, ref: OccupancyMap, args: argparse.Namespace) -> None:

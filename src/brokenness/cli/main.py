@@ -4,13 +4,15 @@ Each subcommand lives in its own module of :mod:`brokenness.cli` and exposes
 ``add_parser(subparsers)``, which registers it and sets ``func`` to a ``run(args) -> int``.
 Exit status: 0 success; 2 an error the user can fix (bad files, bad options), reported on one
 line; 3 the degree was not measured (the evidence does not show that the map is of the
-reference's place: :attr:`brokenness.BrokennessResult.measured`); 130 interrupted.
+reference's place: :attr:`brokenness.BrokennessResult.measured`); 130 interrupted; 141
+when the reader of a pipe went away (``brokenness compare ... | head``), quietly.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -28,6 +30,8 @@ EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 #: ``compute``: the degree was not measured (the map may not be of the reference's place).
 EXIT_NOT_MEASURED = 3
+#: The output pipe was closed by its reader (128 + SIGPIPE, as a shell tool killed by it).
+EXIT_BROKEN_PIPE = 141
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,7 +46,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="How structurally broken is an occupancy-grid map? (Birk, ICRA 2010)",
         epilog=(
             "exit status: 0 done; 2 bad input or options (one line on stderr); "
-            "3 not measured (the map may not be of the reference's place); 130 interrupted"
+            "3 not measured (the map may not be of the reference's place); 130 interrupted. "
+            "Inputs: ROS map_server YAML (+ PGM/PNG), PGM, PNG and other images, .npy "
+            "arrays, ROS bags (--topic). Every subcommand takes -q/--quiet and -v/--verbose."
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -62,7 +68,8 @@ def _show_warning(
     line: Any = None,
 ) -> None:
     """Warnings on the command line: one line each, without source code."""
-    print(f"brokenness: warning: {message}", file=file or sys.stderr)
+    text = " ".join(str(message).split())
+    print(f"brokenness: warning: {text}", file=file or sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -76,16 +83,30 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe shows here, not at exit
+        return code
     except BrokennessError as exc:
         print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # an OSError: before the general case
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except OSError as exc:  # unwritable output path, disk full...
         print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("brokenness: interrupted", file=sys.stderr)
         return 130
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: no second error when Python flushes stdout at exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout replaced (tests) or closed
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover
