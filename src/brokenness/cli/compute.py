@@ -46,6 +46,14 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument("reference", help="the reference map (ground truth)")
     p.add_argument("--json", metavar="PATH", help="write the result as JSON to PATH ('-': stdout)")
     p.add_argument("--overlay", metavar="PNG", help="draw the partitions over the reference")
+    p.add_argument(
+        "--overlay-mode",
+        choices=("overlay", "split"),
+        default="overlay",
+        help="overlay: the partitions drawn over the reference, in the map's frame; split: "
+        "two panels, the map coloured by partition in its own frame and each partition "
+        "moved by its transform onto the reference",
+    )
     p.add_argument("--dpi", type=int, default=150, help="resolution of --overlay (default 150)")
     p.add_argument("--title", default=None, help="title of the --overlay picture")
     p.add_argument(
@@ -97,7 +105,11 @@ def parse_labels(items: list[str]) -> dict[str, str]:
 
 def run(args: argparse.Namespace) -> int:
     """Load the maps, compute, and write what was asked for."""
+    from ..errors import ParameterError
+
     labels = parse_labels(args.label)
+    if not 10 <= args.dpi <= 1200:
+        raise ParameterError(f"--dpi must be between 10 and 1200, got {args.dpi}")
     m, ref = load_pair(args)
     with _busy(args, m), warnings.catch_warnings():  # not measured: said below, as the reason
         warnings.simplefilter("ignore", NothingFoundWarning)
@@ -115,7 +127,9 @@ def run(args: argparse.Namespace) -> int:
     if args.overlay:
         from ..report.overlay import render_overlay
 
-        render_overlay(result, m, ref, args.overlay, dpi=args.dpi, title=args.title)
+        render_overlay(
+            result, m, ref, args.overlay, dpi=args.dpi, title=args.title, mode=args.overlay_mode
+        )
     if args.repaired:
         from ..report.repair import write_repaired
 
