@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from brokenness.cli.main import main
@@ -73,3 +74,27 @@ def test_cli_compare_piped_is_never_cut(runs, tmp_path):
     assert {"sd_degree", "min_degree", "max_degree", "parameters"} <= set(rows[0])
     quiet = [sys.executable, "-m", "brokenness.cli.main", "compare", str(runs), "-q"]
     assert subprocess.run(quiet, capture_output=True, text=True, check=True).stdout == ""
+
+
+def test_plot_has_expected_degree_line_and_n_per_point(runs):
+    from brokenness.report.plots import comparison_figure
+
+    entries = collect_results([runs])
+    fig = comparison_figure(entries)
+    assert len(fig.axes) == 2  # found vs expected, partition sizes
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "expected_degree"
+    lines = [line for line in ax.get_lines() if line.get_label() == "y = x"]
+    assert len(lines) == 1
+    np.testing.assert_allclose(lines[0].get_xdata(), lines[0].get_ydata())
+    notes = sorted(t.get_text() for t in ax.texts)
+    assert notes == ["n=1", "n=1"]
+    # without expected degrees, no such panel
+    plain = [e for e in entries if "expected_degree" not in e.labels]
+    assert len(comparison_figure(plain).axes) == 1
+
+
+def test_cli_compare_plot_file(runs, tmp_path):
+    out = tmp_path / "p.png"
+    assert main(["compare", str(runs), "--plot", str(out), "--dpi", "50", "-q"]) == 0
+    assert out.read_bytes()[:4] == b"\x89PNG"
