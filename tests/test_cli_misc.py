@@ -27,6 +27,7 @@ REQUIRED = {
     "simulate": ["--out", "d"],
     "batch": ["m.csv", "--out", "d"],
     "compare": ["d"],
+    "report": ["d", "--html", "o.html"],
 }
 
 
