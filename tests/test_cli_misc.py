@@ -156,3 +156,19 @@ def test_batch_worker_warnings_are_one_line_and_once(tmp_path):
     assert row.error is None
     assert len(row.warnings) == 1 and "205" in row.warnings[0]
     assert "\n" not in row.warnings[0]
+
+
+def test_batch_warns_of_a_bare_image_and_of_a_mirrored_map(tmp_path):
+    import numpy as np
+
+    from brokenness import load_map
+
+    ref = load_map(REFERENCE)
+    nav = np.where(ref.states == 1, 100, np.where(ref.states == 0, 0, -1)).astype(np.int8)
+    np.save(tmp_path / "image_order.npy", nav)  # OccupancyGrid values, rows top first
+    (tmp_path / "m.csv").write_text(f"map,reference\n{tmp_path / 'image_order.npy'},{REFERENCE}\n")
+    pair = read_manifest(tmp_path / "m.csv").pairs[0]
+    row = evaluate_pair(pair, tmp_path, PairOptions(dpi=30))
+    assert row.error is None
+    text = " | ".join(row.warnings)
+    assert "the map has none" in text and "far better mirrored" in text

@@ -251,10 +251,13 @@ def _evaluate(
         m = load_map(pair.map)
         ref = m if _same_file(pair.map, pair.reference) else load_map(pair.reference)
         loaded = time.perf_counter()
+        _check_pair(m, ref)
         kwargs = {**options.compute, **pair.compute_options()}
         with warnings.catch_warnings():  # the row's status says it
             warnings.simplefilter("ignore", NothingFoundWarning)
             result = compute_brokenness(m, ref, **kwargs)
+        if not result.measured or (result.degree or 0) >= MIRROR_CHECK_DEGREE:
+            _check_mirrored(m, ref, kwargs)
         info = {
             "labels": dict(pair.labels),
             "pair": {
@@ -278,6 +281,33 @@ def _evaluate(
     _error_path(out, pair).unlink(missing_ok=True)
     caught = tuple(dict.fromkeys(" ".join(str(w.message).split()) for w in caught_warnings))
     return replace(RowResult.from_record(pair, record, STATUS_DONE), warnings=caught)
+
+
+#: From this degree on (or when not measured), a pair is checked for a mirrored map.
+MIRROR_CHECK_DEGREE = 3
+
+
+def _check_pair(m: Any, ref: Any) -> None:
+    """Warn when only one of the two maps knows its resolution."""
+    from ..io import MapWarning
+    from ..io.pairing import geometry_warning
+
+    message = geometry_warning(m, ref)
+    if message:
+        warnings.warn(message, MapWarning, stacklevel=2)
+
+
+def _check_mirrored(m: Any, ref: Any, kwargs: Mapping[str, Any]) -> None:
+    """Warn when the map fits the reference far better mirrored (rows in the wrong order)."""
+    from ..io import MapWarning
+    from ..measure.mirror import mirror_check
+
+    try:
+        check = mirror_check(m, ref, threshold=float(kwargs.get("threshold", 2.0)))
+    except BrokennessError:
+        return
+    if check.far_better_mirrored:
+        warnings.warn(check.message(), MapWarning, stacklevel=2)
 
 
 def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:

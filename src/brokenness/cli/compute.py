@@ -17,7 +17,7 @@ from ._common import INPUTS_HELP, add_map_options, add_verbosity, console, load_
 from .main import EXIT_NOT_MEASURED, EXIT_OK
 
 #: A degree from which ``compute`` checks whether the map fits better mirrored.
-MIRROR_CHECK_DEGREE = 3
+MIRROR_CHECK_DEGREE = 3  # as the batch (brokenness.batch.runner)
 
 __all__ = ["add_parser", "run"]
 
@@ -161,10 +161,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _busy(args: argparse.Namespace, m: OccupancyMap) -> Any:
-    """A spinner on a terminal (stderr) while a large map is computed; nothing otherwise."""
+    """A spinner on a terminal (stderr) while a large map (or the random walk) computes."""
     import contextlib
 
-    if args.quiet or not sys.stderr.isatty() or m.states.size < 4_000_000:
+    slow = m.states.size >= 4_000_000 or args.method == "random-walk"
+    if args.quiet or not sys.stderr.isatty() or not slow:
         return contextlib.nullcontext()
     rows, cols = m.shape
     return console(stderr=True).status(f"computing the brokenness of a {cols}x{rows} map...")
