@@ -102,3 +102,16 @@ def test_same_file_warns_once(tmp_path, capsys):
     depot = ROOT / "tests" / "data" / "depot.yaml"
     main(["compute", str(depot), str(depot), "-q"])
     assert capsys.readouterr().err.count("205") == 1
+
+
+def test_npy_of_message_data_reads_as_the_bag_reader_reads_the_message(tmp_path):
+    pytest.importorskip("rosbags")
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_rosbag import GRID, TS1, grid_msg, top_first, write_ros1
+
+    msg = grid_msg(TS1, top_first(3))
+    bag = write_ros1(tmp_path / "m.bag", [("/map", GRID, msg, 1_000_000_000)])
+    np.save(tmp_path / "m.npy", np.asarray(msg.data).reshape(msg.info.height, msg.info.width))
+    assert np.array_equal(load_map(tmp_path / "m.npy").states, load_map(bag).states)
