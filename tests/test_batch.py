@@ -88,7 +88,7 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
             assert 0.5 < float(r["largest_fraction"]) <= 1.0
     md = (out / "summary.md").read_text().splitlines()
     assert md[0] == "5 pairs: 4 done, 0 not measured, 0 skipped (done before), 1 failed"
-    assert md[2].startswith("| id | status | map | reference | system | noise | degree |")
+    assert md[2].startswith("| id | status | resumed | map | reference | system | noise | degree |")
     assert len([ln for ln in md if ln.startswith("| ")]) == 6  # header + 5 rows
 
     # resume: nothing done is evaluated again (files untouched), the failed pair is retried
@@ -111,6 +111,11 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
         assert {p: p.stat().st_mtime_ns for p in zips} == stamps
         assert again.count("skipped") == 4 and again.count("error") == 1
         assert [r.degree for r in again.rows] == [r.degree for r in summary.rows]
+        # a resumed row keeps its status (done / not measured), marked as resumed
+        assert [r.status for r in again.rows] == [r.status for r in summary.rows]
+        assert [r.resumed for r in again.rows] == [r.status != "error" for r in summary.rows]
+        with open(out / "summary.csv", newline="") as fh:
+            assert {r["status"] for r in csv.DictReader(fh)} <= {"done", "error"}
         # a lost and a damaged result are evaluated again, the rest still skipped
         zips[0].unlink()
         zips[1].write_bytes(b"PK\x03\x04 damaged")
@@ -219,7 +224,7 @@ def test_cli_batch_exit_codes(cli, maps, tmp_path, capsys):
     code = cli(["batch", str(good), "--out", str(out), "--no-progress", "--threshold", "2"])
     assert code == 0
     assert (
-        "1 pairs: 1 evaluated, 0 not measured, 0 already done, 0 failed" in capsys.readouterr().out
+        "1 pair: 1 evaluated, 0 not measured, 0 already done, 0 failed" in capsys.readouterr().out
     )
     assert cli(["batch", str(good), "--out", str(out), "--no-progress"]) == 0
     assert "1 already done" in capsys.readouterr().out

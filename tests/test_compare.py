@@ -233,7 +233,7 @@ def test_cli_compare(cli, batch_dir, tmp_path, capsys):
     )
     out = capsys.readouterr().out
     assert code == 0
-    assert "6 result(s), 1 failure(s)" in out and "alpha" in out and "beta" in out
+    assert "6 results, 1 failure" in out and "alpha" in out and "beta" in out
     assert table.read_text().startswith("| system | results | not_measured | failed |")
     assert Image.open(io.BytesIO(plot.read_bytes())).format == "PNG"
 

@@ -337,7 +337,15 @@ def test_single_occupied_cell_is_not_degree_0(tmp_path, capsys):
     one = np.zeros((50, 50), np.int8)
     one[25, 25] = 1
     np.save(tmp_path / "one.npy", one)
-    refused(capsys, "compute", tmp_path / "one.npy", REFERENCE, match="too few occupied cells")
+    refused(
+        capsys,
+        "compute",
+        tmp_path / "one.npy",
+        REFERENCE,
+        "--map-resolution",
+        "0.05",
+        match="too few occupied cells",
+    )
 
 
 def test_overlay_of_a_huge_map_is_reduced_and_keeps_thin_walls():

@@ -42,6 +42,7 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+from rich.table import Column
 from rich.text import Text
 
 from ..errors import BrokennessError, NothingFoundWarning, ParameterError
@@ -95,8 +96,9 @@ class RowResult:
         Position in the manifest (1-based).
     status : str
         ``"done"`` (evaluated now), ``"not measured"`` (evaluated, but the evidence does not
-        show that the map is of the reference's place: no degree), ``"skipped"`` (result
-        existed), ``"error"`` or ``"not run"`` (interrupted).
+        show that the map is of the reference's place: no degree), ``"error"`` or ``"not
+        run"`` (interrupted). A result found from an earlier run keeps its status (done or
+        not measured) and has ``resumed`` set.
     map, reference : str
         Paths as written in the manifest.
     labels : dict
@@ -109,6 +111,10 @@ class RowResult:
         Time to load, compute and save.
     error : str or None
         One-line message of a failure.
+    resumed : bool
+        The result was there from an earlier run (not evaluated again).
+    warnings : tuple of str
+        Warnings raised while evaluating the pair (one line each).
     """
 
     id: str
@@ -126,12 +132,17 @@ class RowResult:
     psi_repaired: float | None = None
     seconds: float | None = None
     error: str | None = None
+    resumed: bool = False
+    warnings: tuple[str, ...] = ()
 
     @classmethod
     def from_record(cls, pair: Pair, record: ResultRecord, status: str) -> RowResult:
-        """A row from a result file of ``pair``."""
+        """A row from a result file of ``pair`` (``status`` skipped: resumed, status kept)."""
         s = record.stats
         timings = record.info.get("timings") or {}
+        resumed = status == STATUS_SKIPPED
+        if resumed:
+            status = STATUS_DONE
         if not record.measured and status == STATUS_DONE:
             status = STATUS_NOT_MEASURED
         return cls(
@@ -149,6 +160,7 @@ class RowResult:
             psi_map=s.get("psi_map"),
             psi_repaired=s.get("psi_repaired"),
             seconds=timings.get("total_seconds"),
+            resumed=resumed,
         )
 
     @classmethod
@@ -183,8 +195,11 @@ class BatchSummary:
     markdown_path: Path
 
     def count(self, status: str) -> int:
-        """Number of rows with ``status``."""
-        return sum(1 for r in self.rows if r.status == status)
+        """Number of rows with ``status``; ``"skipped"``: the rows resumed from an earlier
+        run, which ``"done"`` and ``"not measured"`` then leave out."""
+        if status == STATUS_SKIPPED:
+            return sum(1 for r in self.rows if r.resumed)
+        return sum(1 for r in self.rows if r.status == status and not r.resumed)
 
 
 # -- one pair ---------------------------------------------------------------------------------
@@ -219,23 +234,38 @@ def evaluate_pair(pair: Pair, out_dir: str | os.PathLike[str], options: PairOpti
     -------
     RowResult
     """
+    out = Path(out_dir)
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught_warnings:
+        warnings.simplefilter("default")  # each warning once per pair, said by the parent
+        return _evaluate(pair, out, options, start, caught_warnings)
+
+
+def _evaluate(
+    pair: Pair,
+    out: Path,
+    options: PairOptions,
+    start: float,
+    caught_warnings: list[warnings.WarningMessage],
+) -> RowResult:
     from ..io import load_map
     from ..limits import check_measurable, check_threshold
     from ..measure import compute_brokenness
     from ..report.results import save_results
 
-    out = Path(out_dir)
-    start = time.perf_counter()
     try:
         m = load_map(pair.map)
-        ref = load_map(pair.reference)
+        ref = m if _same_file(pair.map, pair.reference) else load_map(pair.reference)
         loaded = time.perf_counter()
+        _check_pair(m, ref)
         kwargs = {**options.compute, **pair.compute_options()}
         check_measurable(m.n_occupied, pair.map_text)
         check_threshold(kwargs.get("threshold", 2.0), ref.shape)
         with warnings.catch_warnings():  # the row's status says it
             warnings.simplefilter("ignore", NothingFoundWarning)
             result = compute_brokenness(m, ref, **kwargs)
+        if not result.measured or (result.degree or 0) >= MIRROR_CHECK_DEGREE:
+            _check_mirrored(m, ref, kwargs)
         info = {
             "labels": dict(pair.labels),
             "pair": {
@@ -257,7 +287,42 @@ def evaluate_pair(pair: Pair, out_dir: str | os.PathLike[str], options: PairOpti
         record_error(out, pair, message)
         return RowResult.failed(pair, message, seconds)
     _error_path(out, pair).unlink(missing_ok=True)
-    return RowResult.from_record(pair, record, STATUS_DONE)
+    caught = tuple(dict.fromkeys(" ".join(str(w.message).split()) for w in caught_warnings))
+    return replace(RowResult.from_record(pair, record, STATUS_DONE), warnings=caught)
+
+
+#: From this degree on (or when not measured), a pair is checked for a mirrored map.
+MIRROR_CHECK_DEGREE = 3
+
+
+def _check_pair(m: Any, ref: Any) -> None:
+    """Warn when only one of the two maps knows its resolution."""
+    from ..io import MapWarning
+    from ..io.pairing import geometry_warning
+
+    message = geometry_warning(m, ref)
+    if message:
+        warnings.warn(message, MapWarning, stacklevel=2)
+
+
+def _check_mirrored(m: Any, ref: Any, kwargs: Mapping[str, Any]) -> None:
+    """Warn when the map fits the reference far better mirrored (rows in the wrong order)."""
+    from ..io import MapWarning
+    from ..measure.mirror import mirror_check
+
+    try:
+        check = mirror_check(m, ref, threshold=float(kwargs.get("threshold", 2.0)))
+    except BrokennessError:
+        return
+    if check.far_better_mirrored:
+        warnings.warn(check.message(), MapWarning, stacklevel=2)
+
+
+def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def record_error(out_dir: Path, pair: Pair, message: str) -> None:
@@ -279,7 +344,9 @@ class _RateColumn(ProgressColumn):
     """Pairs per second (or seconds per pair when slower than one a second)."""
 
     def render(self, task: Task) -> Text:
-        speed = task.finished_speed or task.speed
+        # over the whole run: rich's windowed speed jumps when two workers finish together
+        elapsed = task.finished_time if task.finished else task.elapsed
+        speed = task.completed / elapsed if task.completed and elapsed else None
         if not speed:
             return Text("-- pairs/s", style="progress.data.speed")
         if speed >= 1:
@@ -296,7 +363,10 @@ def _progress(console: Console | None, enabled: bool) -> Progress:
         TimeElapsedColumn(),
         TextColumn("ETA"),
         TimeRemainingColumn(),
-        TextColumn("{task.fields[last]}"),
+        TextColumn(
+            "{task.fields[last]}",
+            table_column=Column(no_wrap=True, overflow="ellipsis", min_width=10),
+        ),
         console=console or Console(stderr=True),
         disable=not enabled,
         transient=False,
@@ -604,7 +674,7 @@ def _columns(rows: Iterable[RowResult]) -> tuple[list[str], list[str]]:
     labels: dict[str, None] = {}
     for r in rows:
         labels.update(dict.fromkeys(r.labels))
-    fixed = ["id", "status", "map", "reference"]
+    fixed = ["id", "status", "resumed", "map", "reference"]
     return fixed + list(labels) + list(_FIGURES) + ["result", "error"], list(labels)
 
 
@@ -623,6 +693,7 @@ def _table(rows: Sequence[RowResult]) -> tuple[list[str], list[list[str]]]:
         values: dict[str, Any] = {
             "id": r.id,
             "status": r.status,
+            "resumed": "yes" if r.resumed else "",
             "map": r.map,
             "reference": r.reference,
             "result": r.result,
@@ -651,8 +722,9 @@ def summary_markdown(rows: Sequence[RowResult]) -> str:
     def esc(text: str) -> str:
         return text.replace("|", "\\|").replace("\n", " ")
 
-    statuses = (STATUS_DONE, STATUS_NOT_MEASURED, STATUS_SKIPPED, STATUS_ERROR)
-    counts = {s: sum(1 for r in rows if r.status == s) for s in statuses}
+    statuses = (STATUS_DONE, STATUS_NOT_MEASURED, STATUS_ERROR)
+    counts = {s: sum(1 for r in rows if r.status == s and not r.resumed) for s in statuses}
+    counts[STATUS_SKIPPED] = sum(1 for r in rows if r.resumed)
     lines = [
         f"{len(rows)} pairs: {counts[STATUS_DONE]} done, {counts[STATUS_NOT_MEASURED]} not "
         f"measured, {counts[STATUS_SKIPPED]} skipped (done before), "
@@ -743,12 +815,12 @@ def check_options(options: Mapping[str, Any]) -> None:
     ParameterError
         For an option ``compute_brokenness`` does not have, or a threshold out of range.
     """
-    import inspect
+    from dataclasses import fields
 
     from ..limits import check_threshold
-    from ..measure import compute_brokenness
+    from ..measure import BrokennessOptions
 
-    known = set(inspect.signature(compute_brokenness).parameters) - {"map", "reference"}
+    known = {f.name for f in fields(BrokennessOptions)}
     unknown = sorted(str(k) for k in options if k not in known)
     if unknown:
         raise ParameterError(
@@ -896,7 +968,10 @@ def _run_locked(
     with _progress(console, progress) as bar:
         task = bar.add_task("brokenness", total=len(todo), last="")
         if len(rows):
-            bar.console.print(f"{len(rows)} pair(s) already done in {out}: skipped")
+            n = len(rows)
+            bar.console.print(
+                f"{n} {'pair' if n == 1 else 'pairs'} already done in {out}: not evaluated again"
+            )
 
         def done(row: RowResult) -> None:
             rows[row.id] = row
@@ -907,6 +982,10 @@ def _run_locked(
             else:
                 outcome = f"degree {row.degree}"
             last = f"{Path(row.map).name}: {outcome}"
+            for w in row.warnings:
+                bar.console.print(
+                    f"warning: {Path(row.map).name}: {w}", markup=False, highlight=False
+                )
             bar.update(task, advance=1, last=last)
 
         try:

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import argparse
 import signal
-import sys
 from typing import Any
 
 from ..registration.methods import METHODS
+from ._common import INPUTS_HELP, add_verbosity, console, plural
 
 __all__ = ["EXIT_PAIRS_FAILED", "add_parser", "run"]
 
@@ -35,8 +35,12 @@ def add_parser(subparsers: Any) -> None:
             "Evaluate every map/reference pair of MANIFEST (CSV with columns map, reference "
             "and any labels such as system, dataset, noise; or YAML) in parallel. Writes one "
             "result zip per pair into --out as it finishes, and summary.csv / summary.md at the "
-            "end. Pairs already done are skipped (resume). Exit 0 when every pair has a "
-            "result, 1 when some pairs failed (see the summary), 2 on a bad manifest."
+            "end. Pairs already done are not evaluated again (resume; their rows keep their "
+            f"status, marked 'resumed'). {INPUTS_HELP}"
+        ),
+        epilog=(
+            "exit status: 0 every pair has a result; 1 some pairs failed (see the summary); "
+            "2 bad input or options (a bad manifest...; one line on stderr); 130 interrupted"
         ),
     )
     p.add_argument("manifest", help="CSV or YAML list of pairs (paths relative to it)")
@@ -80,6 +84,7 @@ def add_parser(subparsers: Any) -> None:
         help="smallest partition as a share of the occupied cells (default 0.02)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_verbosity(p)
     p.set_defaults(func=run)
 
 
@@ -99,7 +104,6 @@ def _terminated(signum: int, frame: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the batch and print where the results are."""
-    from rich.console import Console
     from rich.markup import escape
 
     from ..batch import read_manifest, run_batch
@@ -111,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     if args.threshold is not None:
         check_threshold(args.threshold)
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
-    console = Console(stderr=True)
+    err = console(stderr=True)
     previous = signal.signal(signal.SIGTERM, _terminated)  # stop cleanly, as on Ctrl-C
     try:
         summary = run_batch(
@@ -121,19 +125,32 @@ def run(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
             local_cluster=args.local_cluster,
             options=_compute_options(args),
-            progress=not args.no_progress,
-            console=console,
+            progress=not (args.no_progress or args.quiet),
+            console=err,
         )
     finally:
         signal.signal(signal.SIGTERM, previous)
     done, skipped = summary.count(STATUS_DONE), summary.count(STATUS_SKIPPED)
     not_measured = summary.count(STATUS_NOT_MEASURED)
     failed = [r for r in summary.rows if r.status == STATUS_ERROR]
-    out = Console(file=sys.stdout, soft_wrap=True)
+    if args.quiet:
+        return EXIT_PAIRS_FAILED if failed else 0
+    out = console()
     out.print(
-        f"{len(summary.rows)} pairs: {done} evaluated, {not_measured} not measured, "
+        f"{plural(len(summary.rows), 'pair')}: {done} evaluated, {not_measured} not measured, "
         f"{skipped} already done, {len(failed)} failed"
     )
+    if args.verbose:
+        for row in summary.rows:
+            what = (
+                row.error
+                if row.error
+                else f"degree {row.degree}"
+                if row.degree is not None
+                else row.status
+            )
+            mark = " (resumed)" if row.resumed else ""
+            out.print(f"  row {row.row} ({escape(row.map)}): {escape(str(what))}{mark}")
     for row in failed[:10]:
         where = f"row {row.row} ({escape(row.map)})"
         out.print(f"  [red]failed[/red] {where}: {escape(row.error or '')}")

@@ -2,14 +2,16 @@
 
 RESULTS are result zips (``brokenness compute --save-results``, ``brokenness batch``) or
 folders of them, such as a batch output folder, whose ``*.error.json`` files count as
-failures. Results are grouped by their labels (the manifest's columns).
+failures. Results are grouped by their labels (the manifest's columns, ``compute --label``)
+and, unless ``--pool``, by the method and the parameters that differ between them.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
+
+from ._common import add_verbosity, console, plural
 
 __all__ = ["add_parser", "run"]
 
@@ -21,11 +23,16 @@ def add_parser(subparsers: Any) -> None:
         help="tables and plots over many result files",
         description=(
             "Group result zips (or folders of them, e.g. batch output folders) by their labels "
-            "and report per group the number of results and failures, mean and median degree, "
-            "mean largest-partition share and mean Psi. Optionally write the table (.csv or "
-            ".md) and a figure (.png, .pdf, .svg): degree vs a numeric noise label per system, "
-            "and the distribution of partition sizes."
+            "(manifest columns, compute --label) and report per group the number of results "
+            "with a degree (n), those not measured and the failures, mean, median, s.d., min "
+            "and max degree, mean largest-partition share and mean Psi. Results computed with "
+            "different methods or parameters are kept apart (extra columns 'method' and "
+            "'parameters') unless --pool. Optionally write the table (.csv or .md) and a "
+            "figure (.png, .pdf, .svg): degree vs a numeric noise label per system (n per "
+            "point; the line y = x when results carry an expected_degree label), and the "
+            "distribution of partition sizes."
         ),
+        epilog="exit status: 0 done; 2 bad input or options (one line on stderr)",
     )
     p.add_argument("results", nargs="+", metavar="RESULTS", help="result zips or folders")
     p.add_argument(
@@ -34,6 +41,11 @@ def add_parser(subparsers: Any) -> None:
         metavar="LABEL",
         default=None,
         help="labels to group by (default: every label except seed)",
+    )
+    p.add_argument(
+        "--pool",
+        action="store_true",
+        help="pool results computed with different methods or parameters into one group",
     )
     p.add_argument("--table", metavar="PATH", help="write the table to PATH (.csv or .md)")
     p.add_argument("--plot", metavar="PATH", help="write the figure to PATH (.png, .pdf, .svg)")
@@ -52,6 +64,7 @@ def add_parser(subparsers: Any) -> None:
         help="label that makes the series of the plots (default: system if present)",
     )
     p.add_argument("--dpi", type=int, default=200, help="resolution of a PNG plot (default 200)")
+    add_verbosity(p)
     p.set_defaults(func=run)
 
 
@@ -61,8 +74,6 @@ MAX_DPI = 1200
 
 def run(args: argparse.Namespace) -> int:
     """Collect the results, print the table, write what was asked for."""
-    from rich.console import Console
-
     from ..errors import ParameterError
     from ..report.collect import collect_results
     from ..report.plots import write_plot
@@ -79,16 +90,17 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         check_output_file(args.plot, "--plot", figure_suffixes())
     entries = collect_results(args.results)
-    table = group_table(entries, args.group_by)
+    table = group_table(entries, args.group_by, pool=args.pool)
     failed = sum(e.failed for e in entries)
-    shown = rich_table(table, title=f"{len(entries) - failed} result(s), {failed} failure(s)")
-    console = Console(file=sys.stdout)
-    if not console.is_terminal:  # piped or redirected: the whole table, never cut to 80
-        wide = Console(file=sys.stdout, width=10_000).measure(shown).maximum
-        console = Console(file=sys.stdout, width=max(80, wide))
-    console.print(shown)
+    title = f"{plural(len(entries) - failed, 'result')}, {plural(failed, 'failure')}"
+    shown = rich_table(table, title=title)
+    out = console()
+    if not args.quiet:
+        out.print(shown)
     if args.table:
-        console.print(f"table: {write_table(table, args.table)}")
+        path = write_table(table, args.table)
+        if not args.quiet:
+            out.print(f"table: {path}")
     if args.plot:
         path = write_plot(
             entries,
@@ -97,5 +109,6 @@ def run(args: argparse.Namespace) -> int:
             x_label=args.x_label,
             series_label=args.series_label,
         )
-        console.print(f"plot: {path}")
+        if not args.quiet:
+            out.print(f"plot: {path}")
     return 0

@@ -13,7 +13,11 @@ from ..errors import NothingFoundWarning
 from ..grid import OccupancyMap
 from ..measure import BrokennessResult, compute_brokenness
 from ..registration.methods import METHODS
+from ._common import INPUTS_HELP, add_map_options, add_verbosity, console, load_pair, plural
 from .main import EXIT_NOT_MEASURED, EXIT_OK
+
+#: A degree from which ``compute`` checks whether the map fits better mirrored.
+MIRROR_CHECK_DEGREE = 3  # as the batch (brokenness.batch.runner)
 
 __all__ = ["add_parser", "run"]
 
@@ -26,19 +30,47 @@ def add_parser(subparsers: Any) -> None:
         description=(
             "Split MAP into partitions that each agree with REFERENCE under their own rigid "
             "transform (Birk 2010, Algorithm 1) and report the degree of brokenness "
-            "(partitions - 1). Maps: ROS map YAML, PGM, PNG (and other images), .npy."
+            f"(partitions - 1). {INPUTS_HELP} Conventions: rot° and shift (cells) map "
+            "cells (x = column, y = row down) of MAP onto REFERENCE, a positive rot° turning "
+            "clockwise on screen; world rot° and shift (m) are the same transform in the ROS "
+            "world frames (y up, counter-clockwise), hence of opposite sign."
         ),
         epilog=(
-            "exit status: 0 measured; 2 bad input or options; 3 not measured: no part of the "
-            "map agrees with the reference well enough (not the same place?), degree null"
+            "exit status: 0 measured; 2 bad input or options (one line on stderr); 3 not "
+            "measured: no part of the map agrees with the reference well enough (not the "
+            "same place?), degree null. --repaired writes by its suffix: .yaml (ROS map, "
+            "+ .pgm), .pgm, .png or .npy (OccupancyGrid values, ROS row order)."
         ),
     )
     p.add_argument("map", help="the map under test")
     p.add_argument("reference", help="the reference map (ground truth)")
     p.add_argument("--json", metavar="PATH", help="write the result as JSON to PATH ('-': stdout)")
     p.add_argument("--overlay", metavar="PNG", help="draw the partitions over the reference")
-    p.add_argument("--save-results", metavar="ZIP", help="write a self-contained result record")
-    p.add_argument("--repaired", metavar="MAP", help="write the map with each partition moved back")
+    p.add_argument(
+        "--overlay-mode",
+        choices=("overlay", "split"),
+        default="overlay",
+        help="overlay: the partitions drawn over the reference, in the map's frame; split: "
+        "two panels, the map coloured by partition in its own frame and each partition "
+        "moved by its transform onto the reference",
+    )
+    p.add_argument("--dpi", type=int, default=150, help="resolution of --overlay (default 150)")
+    p.add_argument("--title", default=None, help="title of the --overlay picture")
+    p.add_argument(
+        "--save-results", metavar="ZIP", help="write a self-contained result record (zip)"
+    )
+    p.add_argument(
+        "--label",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="label stored with --save-results, as a manifest column (repeatable)",
+    )
+    p.add_argument(
+        "--repaired",
+        metavar="MAP",
+        help="write the map with each partition moved back (.yaml, .pgm, .png or .npy)",
+    )
     p.add_argument("--method", choices=METHODS, default="ifmi", help="registration (default ifmi)")
     p.add_argument("--seed", type=int, default=None, help="seed of the random-walk method")
     p.add_argument(
@@ -53,7 +85,8 @@ def add_parser(subparsers: Any) -> None:
         default=0.02,
         help="smallest partition as a share of the occupied cells (default 0.02)",
     )
-    p.add_argument("--topic", default=None, help="map topic when MAP or REFERENCE is a ROS bag")
+    add_map_options(p)
+    add_verbosity(p)
     p.set_defaults(func=run)
 
 
@@ -71,20 +104,35 @@ def check_outputs(args: argparse.Namespace) -> None:
         check_output_file(args.repaired, "--repaired", MAP_SUFFIXES)
 
 
+def parse_labels(items: list[str]) -> dict[str, str]:
+    """``["k=v", ...]`` as a dict (ParameterError on an item without ``=`` or key)."""
+    from ..errors import ParameterError
+
+    labels: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ParameterError(f"--label must be KEY=VALUE, got {item!r}")
+        labels[key.strip()] = value.strip()
+    return labels
+
+
 def run(args: argparse.Namespace) -> int:
     """Load the maps, compute, and write what was asked for."""
-    from ..io import load_map
+    from ..errors import ParameterError
     from ..limits import check_measurable, check_threshold
     from ._outputs import check_seed
 
     check_outputs(args)
     check_seed(args.seed)
     check_threshold(args.threshold)  # the neighbourhood it implies, before any map is read
-    m = load_map(args.map, topic=args.topic)
-    ref = load_map(args.reference, topic=args.topic)
+    labels = parse_labels(args.label)
+    if not 10 <= args.dpi <= 1200:
+        raise ParameterError(f"--dpi must be between 10 and 1200, got {args.dpi}")
+    m, ref = load_pair(args)
     check_measurable(m.n_occupied, args.map)
     check_threshold(args.threshold, ref.shape)
-    with warnings.catch_warnings():  # said once, below, as the result's reason
+    with _busy(args, m), warnings.catch_warnings():  # not measured: said below, as the reason
         warnings.simplefilter("ignore", NothingFoundWarning)
         result = compute_brokenness(
             m,
@@ -95,10 +143,14 @@ def run(args: argparse.Namespace) -> int:
             min_partition_fraction=args.min_partition_fraction,
         )
     status = EXIT_OK if result.measured else EXIT_NOT_MEASURED
+    if not result.measured or (result.degree or 0) >= MIRROR_CHECK_DEGREE:
+        _warn_if_mirrored(m, ref, args)
     if args.overlay:
         from ..report.overlay import render_overlay
 
-        render_overlay(result, m, ref, args.overlay)
+        render_overlay(
+            result, m, ref, args.overlay, dpi=args.dpi, title=args.title, mode=args.overlay_mode
+        )
     if args.repaired:
         from ..report.repair import write_repaired
 
@@ -111,7 +163,12 @@ def run(args: argparse.Namespace) -> int:
             result,
             m,
             ref,
-            info={"map": args.map, "reference": args.reference, "command": "compute"},
+            info={
+                "map": args.map,
+                "reference": args.reference,
+                "command": "compute",
+                "labels": labels,
+            },
         )
     if args.json == "-":
         json.dump(_json_record(result, args), sys.stdout, indent=2)
@@ -119,8 +176,35 @@ def run(args: argparse.Namespace) -> int:
         return status
     if args.json:
         _write_json(Path(args.json), _json_record(result, args))
-    _print_summary(result, m, ref)
+    if not args.quiet:
+        _print_summary(result, m, ref, verbose=args.verbose)
     return status
+
+
+def _busy(args: argparse.Namespace, m: OccupancyMap) -> Any:
+    """A spinner on a terminal (stderr) while a large map (or the random walk) computes."""
+    import contextlib
+
+    slow = m.states.size >= 4_000_000 or args.method == "random-walk"
+    if args.quiet or not sys.stderr.isatty() or not slow:
+        return contextlib.nullcontext()
+    rows, cols = m.shape
+    return console(stderr=True).status(f"computing the brokenness of a {cols}x{rows} map...")
+
+
+def _warn_if_mirrored(m: OccupancyMap, ref: OccupancyMap, args: argparse.Namespace) -> None:
+    """Warn (one line) when the map fits the reference far better with its rows reversed."""
+    from ..errors import BrokennessError
+    from ..measure.mirror import mirror_check
+
+    try:
+        check = mirror_check(m, ref, threshold=args.threshold)
+    except BrokennessError:  # nothing to register: the result says why
+        return
+    if check.far_better_mirrored:
+        from ..io import MapWarning
+
+        warnings.warn(check.message(), MapWarning, stacklevel=2)
 
 
 def _json_record(result: BrokennessResult, args: argparse.Namespace) -> dict[str, Any]:
@@ -136,20 +220,23 @@ def _write_json(path: Path, record: dict[str, Any]) -> None:
     atomic_write_text(path, json.dumps(record, indent=2) + "\n")
 
 
-def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap) -> None:
-    from rich.console import Console
+def _print_summary(
+    result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap, *, verbose: bool = False
+) -> None:
     from rich.table import Table
 
-    console = Console()
+    out = console()
+    if verbose:
+        out.print(f"map: {m!r}\nreference: {ref!r}")
     if not result.measured:
-        console.print(
+        out.print(
             f"[bold]degree of brokenness: not measured[/bold] ({result.reason}; method "
             f"{result.method}, {result.seconds:.3f} s)"
         )
         return
-    console.print(
+    out.print(
         f"[bold]degree of brokenness: {result.degree}[/bold]  "
-        f"({len(result.partitions)} partition(s), method {result.method}, "
+        f"({plural(len(result.partitions), 'partition')}, method {result.method}, "
         f"{result.seconds:.3f} s)"
     )
     metres = any(p.transform.world is not None for p in result.partitions)
@@ -169,8 +256,15 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
         off = p.displacement_m if metres and p.displacement_m is not None else p.displacement
         row += [f"{p.rotation_offset_deg:.2f}", f"{off:.2f}", f"{p.confidence:.2f}"]
         table.add_row(*row)
-    console.print(table)
-    console.print(
+    out.print(table)
+    out.print(
         f"unassigned: {result.unassigned_cells} of {result.occupied_cells} occupied cells "
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
+    note = "rot°/shift (cells): map cells onto reference cells, y down, + = clockwise on screen"
+    if metres:
+        note += "; world rot°/shift (m): ROS world frames, y up, + = counter-clockwise"
+    out.print(note)
+    if verbose:
+        steps = ", ".join(f"{1000 * s:.0f}" for s in result.step_seconds)
+        out.print(f"step times (ms): {steps}")

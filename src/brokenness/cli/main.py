@@ -4,13 +4,15 @@ Each subcommand lives in its own module of :mod:`brokenness.cli` and exposes
 ``add_parser(subparsers)``, which registers it and sets ``func`` to a ``run(args) -> int``.
 Exit status: 0 success; 2 an error the user can fix (bad files, bad options), reported on one
 line; 3 the degree was not measured (the evidence does not show that the map is of the
-reference's place: :attr:`brokenness.BrokennessResult.measured`); 130 interrupted.
+reference's place: :attr:`brokenness.BrokennessResult.measured`); 130 interrupted; 141
+when the reader of a pipe went away (``brokenness compare ... | head``), quietly.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -22,12 +24,14 @@ from ..errors import BrokennessError
 __all__ = ["main"]
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "compare")
+SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "compare", "report")
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 #: ``compute``: the degree was not measured (the map may not be of the reference's place).
 EXIT_NOT_MEASURED = 3
+#: The output pipe was closed by its reader (128 + SIGPIPE, as a shell tool killed by it).
+EXIT_BROKEN_PIPE = 141
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,9 +48,11 @@ def build_parser() -> argparse.ArgumentParser:
             "exit status: 0 done; 1 batch: some pairs failed (error rows in its summary); "
             "2 bad input, option or output path (one line on stderr, before any work); "
             "3 not measured (the map may not be of the reference's place); 130 interrupted "
-            "(Ctrl-C; SIGTERM for batch). Limits: BROKENNESS_MAX_CELLS (cells per map, "
-            "default 100000000), BROKENNESS_WORKER_MEMORY (address space per batch worker, "
-            "e.g. 4G); see the README's Reliability section"
+            "(Ctrl-C; SIGTERM for batch); 141 output pipe closed. Inputs: ROS map_server YAML "
+            "(+ PGM/PNG), PGM, PNG and other images, .npy arrays, ROS bags (--topic). Every "
+            "subcommand takes -q/--quiet and -v/--verbose. Limits: BROKENNESS_MAX_CELLS (cells "
+            "per map, default 100000000), BROKENNESS_WORKER_MEMORY (address space per batch "
+            "worker, e.g. 4G); see the README's Reliability section"
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -66,7 +72,8 @@ def _show_warning(
     line: Any = None,
 ) -> None:
     """Warnings on the command line: one line each, without source code."""
-    print(f"brokenness: warning: {message}", file=file or sys.stderr)
+    text = " ".join(str(message).split())
+    print(f"brokenness: warning: {text}", file=file or sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -80,10 +87,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe shows here, not at exit
+        return code
     except BrokennessError as exc:
         print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # an OSError: before the general case
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except OSError as exc:  # unwritable output path, disk full...
         print(f"brokenness {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -97,6 +109,15 @@ def _run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("brokenness: interrupted", file=sys.stderr)
         return 130
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: no second error when Python flushes stdout at exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # stdout replaced (tests) or closed
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

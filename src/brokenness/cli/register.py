@@ -1,4 +1,11 @@
-"""``brokenness register REFERENCE MOVING``: the rigid transform that aligns two maps."""
+"""``brokenness register REFERENCE MOVING``: the rigid transform that aligns two maps.
+
+What it answers: the one rigid transform under which the most cells of MOVING land on
+reference walls, and the next best distinct hypotheses (``--candidates``). For an unbroken
+map that is *the* alignment. For a broken map it is the alignment of one of its parts,
+usually the largest, but not necessarily (a smaller part with straighter walls can give a
+sharper spectral peak); ``compute`` finds every part and orders them by size.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..registration.methods import METHODS
+from ._common import INPUTS_HELP, add_map_options, add_verbosity, console, load_pair, plural
 
 __all__ = ["add_parser", "run"]
 
@@ -19,10 +27,16 @@ def add_parser(subparsers: Any) -> None:
         "register",
         help="rigid transform that aligns a map with a reference",
         description=(
-            "Find the rotation and translation that map the cells (x = column, y = row) of "
-            "MOVING onto REFERENCE (improved Fourier-Mellin registration by default). Maps: "
-            "ROS map YAML, PGM, PNG (and other images), .npy."
+            "Find the rotation and translation that map the cells (x = column, y = row, "
+            "down) of MOVING onto REFERENCE (improved Fourier-Mellin registration by "
+            "default). rotation is in cells, a positive angle turning clockwise on screen; "
+            "world is the same transform between the ROS world frames (y up, positive "
+            "counter-clockwise). The answer is the hypothesis under which the most cells of "
+            "MOVING agree: for a broken map, one part's alignment (usually, but not always, "
+            "the largest part's; 'compute' finds every part). "
+            f"{INPUTS_HELP}"
         ),
+        epilog="exit status: 0 done; 2 bad input or options (one line on stderr)",
     )
     p.add_argument("reference", help="the reference map")
     p.add_argument("moving", help="the map to align with the reference")
@@ -34,14 +48,25 @@ def add_parser(subparsers: Any) -> None:
         type=int,
         default=3,
         metavar="N",
-        help="number of ranked hypotheses to report (default 3)",
+        help="number of distinct ranked hypotheses to report (default 3); fewer when the "
+        "method finds no more distinct ones (said so)",
     )
+    add_map_options(p, "reference", "moving")
+    add_verbosity(p)
     p.set_defaults(func=run)
+
+
+def _options(method: str, n: int) -> dict[str, Any]:
+    """Method options that let ``n`` distinct hypotheses come out, when there are."""
+    if method != "ifmi":
+        return {}
+    # every rotation peak (not only those half as high as the best), two translations each
+    return {"rotation_peaks": min(max(2, n), 64), "translation_peaks": 2, "peak_ratio": 0.0}
 
 
 def run(args: argparse.Namespace) -> int:
     """Load both maps, register, and print (or write) the result."""
-    from ..io import load_map
+    from ..errors import ParameterError
     from ._outputs import check_output_file, check_seed
 
     if args.json and args.json != "-":
@@ -49,12 +74,28 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     from ..registration.api import register
 
-    ref = load_map(args.reference)
-    moving = load_map(args.moving)
-    reg = register(ref, moving, method=args.method, seed=args.seed, max_candidates=args.candidates)
+    if args.candidates < 1:
+        raise ParameterError(f"--candidates must be at least 1, got {args.candidates}")
+    ref, moving = load_pair(args, "reference", "moving")
+    reg = register(
+        ref,
+        moving,
+        method=args.method,
+        seed=args.seed,
+        max_candidates=args.candidates,
+        **_options(args.method, args.candidates),
+    )
     record = reg.to_dict()
     record["reference"] = str(args.reference)
     record["moving"] = str(args.moving)
+    fewer = None
+    if len(reg.candidates) < args.candidates:
+        fewer = (
+            f"only {plural(len(reg.candidates), 'distinct hypothesis', 'distinct hypotheses')} "
+            f"of the {args.candidates} asked for: the others the method found put the map's "
+            "cells where one of these already does"
+        )
+        record["fewer_candidates"] = fewer
     if args.json == "-":
         json.dump(record, sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -63,15 +104,31 @@ def run(args: argparse.Namespace) -> int:
         from .._atomic import atomic_write_text
 
         atomic_write_text(Path(args.json), json.dumps(record, indent=2) + "\n")
+    if args.quiet:
+        return 0
+    out = console()
     t = reg.transform
-    print(f"rotation:    {t.rotation_deg + 0.0:.3f} deg (cells: x = column, y = row)")
-    print(f"translation: ({t.tx:.2f}, {t.ty:.2f}) cells")
+    out.print(
+        f"rotation:    {t.rotation_deg + 0.0:.3f} deg (cells: x = column, y = row down; "
+        "+ = clockwise on screen)"
+    )
+    out.print(f"translation: ({t.tx:.2f}, {t.ty:.2f}) cells")
     if t.scale != 1.0:
-        print(f"scale:       {t.scale:.6g} (moving resolution / reference resolution)")
+        out.print(f"scale:       {t.scale:.6g} (moving resolution / reference resolution)")
     if t.world is not None:
         w = t.world
-        print(
+        out.print(
             f"world:       {w.rotation_deg:.3f} deg counter-clockwise, ({w.tx:.3f}, {w.ty:.3f}) m"
         )
-    print(f"confidence:  {reg.confidence:.2f}  ({reg.method}, {reg.seconds:.3f} s)")
+    out.print(f"confidence:  {reg.confidence:.2f}  ({reg.method}, {reg.seconds:.3f} s)")
+    if len(reg.candidates) > 1 or args.verbose:
+        out.print(f"{plural(len(reg.candidates), 'hypothesis', 'hypotheses')}, best first:")
+        for i, c in enumerate(reg.candidates):
+            ct = c.transform
+            out.print(
+                f"  {i}: rotation {ct.rotation_deg + 0.0:8.3f} deg, translation "
+                f"({ct.tx:.2f}, {ct.ty:.2f}) cells, confidence {c.confidence:.2f}"
+            )
+    if fewer:
+        out.print(f"note: {fewer}")
     return 0

@@ -6,6 +6,8 @@ import argparse
 import sys
 from typing import Any
 
+from ._common import add_verbosity
+
 __all__ = ["add_parser", "run"]
 
 
@@ -22,6 +24,7 @@ def add_parser(subparsers: Any) -> None:
             "partition's true transform and share) and NAME_labels.npy per map. With --log, "
             "the run is a real CARMEN laser log with corrected poses instead of a building."
         ),
+        epilog="exit status: 0 done; 2 bad input or options (one line on stderr)",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first map (default 0)")
@@ -89,6 +92,7 @@ def add_parser(subparsers: Any) -> None:
         help="a CARMEN log (FLASER/ROBOTLASER1, gzip or plain) with corrected poses: inject "
         "the bumps into its pose chain instead of simulating a building (--size is ignored)",
     )
+    add_verbosity(p)
     p.set_defaults(func=run)
 
 
@@ -159,8 +163,11 @@ def run(args: argparse.Namespace) -> int:
         name = f"{args.name}_{seed:04d}"
         paths = save_simulation(sim, args.out, name)
         counted = sum(p.counted for p in sim.partitions)
+        if args.quiet:
+            continue
         print(
-            f"{paths['map']}: expected degree {sim.expected_degree} ({len(sim.bumps)} bumps; "
+            f"{paths['map']}: expected degree {sim.expected_degree} "
+            f"({len(sim.bumps)} bump{'' if len(sim.bumps) == 1 else 's'}; "
             f"{counted} of {len(sim.partitions)} partitions count), {sim.map.shape[1]}x"
             f"{sim.map.shape[0]} cells",
             file=sys.stdout,

@@ -15,7 +15,24 @@ from ..grid import OCCUPIED, UNKNOWN, OccupancyMap
 from ..limits import max_cells
 from ._files import one_line, read_file_bytes
 
-__all__ = ["check_npy_header", "decode_npy", "encode_npy"]
+__all__ = ["ROW_ORDERS", "check_npy_header", "decode_npy", "encode_npy", "is_occupancy_grid_values"]
+
+#: Row orders of a ``.npy`` array: ``"ros"`` (row 0 is the origin row, at the bottom of the
+#: map: what ``np.array(msg.data).reshape(h, w)`` gives for a ``nav_msgs/OccupancyGrid``)
+#: or ``"image"`` (row 0 is the top row, as in a PGM/PNG and in :class:`OccupancyMap`).
+ROW_ORDERS: tuple[str, ...] = ("ros", "image")
+
+
+def is_occupancy_grid_values(arr: NDArray[np.generic]) -> bool:
+    """True for an integer array read as ``nav_msgs/OccupancyGrid`` values (-1, 0..100).
+
+    Integers holding -1, 0 and 1 with at least one 1 are the three states of
+    :class:`OccupancyMap` instead; every other integer array is OccupancyGrid values.
+    """
+    if not np.issubdtype(arr.dtype, np.integer) or not arr.size:
+        return False
+    low, high = int(arr.min()), int(arr.max())
+    return not (low >= -1 and high == 1)
 
 
 def decode_npy(
@@ -23,6 +40,7 @@ def decode_npy(
     *,
     resolution: float | None = None,
     origin: tuple[float, float, float] | None = None,
+    row_order: str | None = None,
 ) -> OccupancyMap:
     """Load a 2D ``.npy`` array as a map.
 
@@ -35,6 +53,13 @@ def decode_npy(
     * other integers: ``nav_msgs/OccupancyGrid`` values, -1 unknown and 0..100 percent,
       thresholded by :meth:`OccupancyMap.from_array` (>= 65 occupied, <= 19 free);
     * floats: occupancy probabilities in [0, 1] (NaN or inf is an error).
+
+    Row order (``row_order``): ``nav_msgs/OccupancyGrid`` values are taken in ROS order by
+    default, as the rosbag reader takes them: row 0 of the array is the origin row, the
+    *bottom* of the map (``np.array(msg.data).reshape(h, w)``), so the rows are flipped into
+    the image order of :class:`OccupancyMap`. Boolean, three-state and float arrays are
+    taken in image order (row 0 at the top) by default. ``row_order="ros"`` or ``"image"``
+    says it for any array.
 
     Raises
     ------
@@ -60,9 +85,12 @@ def decode_npy(
     try:
         if arr.ndim != 2:
             raise MapError(f"a map must be a 2D array, got shape {arr.shape}")
+        ros = is_occupancy_grid_values(arr) if row_order is None else row_order == "ros"
+        if ros:
+            arr = arr[::-1]
         if np.issubdtype(arr.dtype, np.integer) and arr.size:
             low, high = int(arr.min()), int(arr.max())
-            if low >= -1 and high <= 1:
+            if low >= -1 and high == 1:
                 return OccupancyMap(
                     arr.astype(np.int8), resolution=resolution, origin=origin, source=name
                 )
@@ -127,7 +155,12 @@ def check_npy_header(data: bytes, name: str) -> tuple[tuple[int, ...], np.dtype[
 
 
 def encode_npy(states: NDArray[np.int8]) -> bytes:
-    """``.npy`` bytes of ``nav_msgs/OccupancyGrid`` values: -1 unknown, 0 free, 100 occupied."""
+    """``.npy`` bytes of ``nav_msgs/OccupancyGrid`` values: -1 unknown, 0 free, 100 occupied.
+
+    In ROS row order (row 0 = the bottom row of the map, as ``OccupancyGrid.data``), the
+    order :func:`decode_npy` reads such values in by default.
+    """
+    states = states[::-1]
     nav = np.zeros(states.shape, dtype=np.int8)
     nav[states == OCCUPIED] = 100
     nav[states == UNKNOWN] = -1

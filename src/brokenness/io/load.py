@@ -10,7 +10,7 @@ from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MIN_RESOLUTION, resolution_in_range
 from ._files import check_regular
-from .arrays import decode_npy
+from .arrays import ROW_ORDERS, decode_npy
 from .pixels import (
     DEFAULT_FREE_THRESH,
     DEFAULT_OCCUPIED_THRESH,
@@ -99,6 +99,7 @@ def load_map(
     resolution: float | None = None,
     origin: tuple[float, float, float] | None = None,
     topic: str | None = None,
+    row_order: str | None = None,
 ) -> OccupancyMap:
     """Load an occupancy map from a file, with ROS ``map_server`` semantics.
 
@@ -116,6 +117,9 @@ def load_map(
       thresholded with the ``map_server`` defaults (0.65 / 0.196, trinary unless ``mode``
       says otherwise); no geometry unless given as arguments.
     * ``.npy``: a 2D array, see :func:`brokenness.io.arrays.decode_npy`.
+      ``nav_msgs/OccupancyGrid`` values (integers -1, 0..100) are in ROS row order by
+      default (row 0 at the bottom, as in the message and as the rosbag reader reads it);
+      other arrays in image order. ``row_order`` says which.
     * ``.bag`` / ``.db3`` / ``.mcap`` or a rosbag2 folder: the ``nav_msgs/OccupancyGrid``
       on ``topic`` (default ``/map``), read by :mod:`brokenness.io.rosbag`.
 
@@ -133,6 +137,11 @@ def load_map(
         Pose of the lower-left corner; overrides the file's.
     topic : str, optional
         Topic of the map in a rosbag (default ``/map``).
+    row_order : {"ros", "image"}, optional
+        ``.npy`` only: ``"ros"`` when row 0 of the array is the bottom row of the map (the
+        origin row of a ``nav_msgs/OccupancyGrid``), ``"image"`` when it is the top row.
+        Default: ``"ros"`` for OccupancyGrid values, ``"image"`` for other arrays. Other
+        formats fix their own row order (a ParameterError if given for them).
 
     Returns
     -------
@@ -165,6 +174,11 @@ def load_map(
     resolution, origin = _geometry(resolution, origin)
     p = Path(os.fspath(path))
     name = str(p)
+    if row_order is not None:
+        if row_order not in ROW_ORDERS:
+            raise ParameterError(f"row_order must be 'ros' or 'image', got {row_order!r}")
+        if p.suffix.lower() != ".npy":
+            raise ParameterError(f"{name}: row_order applies to .npy arrays only")
 
     if is_rosbag(p):
         bag = _load_bag(p, topic)  # checks that every file it reads is a regular file
@@ -207,7 +221,7 @@ def load_map(
             source=name,
         )
     if suffix == ".npy":
-        return decode_npy(p, resolution=resolution, origin=origin)
+        return decode_npy(p, resolution=resolution, origin=origin, row_order=row_order)
     if suffix in IMAGE_SUFFIXES:
         states = pixels_to_states(
             read_pixels(p),

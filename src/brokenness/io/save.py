@@ -72,7 +72,8 @@ def save_map(map: OccupancyMap, path: str | os.PathLike[str], *, image_format: s
       :data:`DEFAULT_SAVE_RESOLUTION` (0.05 m) and :data:`DEFAULT_SAVE_ORIGIN` (0, 0, 0) and
       a :class:`MapWarning`, since ROS requires both.
     * ``.pgm`` / ``.png``: only that trinary image (no geometry).
-    * ``.npy``: ``int8`` ``nav_msgs/OccupancyGrid`` values, -1 unknown, 0 free, 100 occupied.
+    * ``.npy``: ``int8`` ``nav_msgs/OccupancyGrid`` values, -1 unknown, 0 free, 100 occupied,
+      in ROS row order (row 0 = the bottom row, as ``OccupancyGrid.data``).
 
     Every file is written atomically (a temporary file in the same folder, then
     :func:`os.replace`); for a YAML the image is written first. ``load_map(save_map(m, p))``

@@ -48,6 +48,10 @@ class ResultEntry:
         Picture distances of the aligned and the repaired map to the reference.
     error : str or None
         The message of a failed pair.
+    method : str or None
+        Registration method of the computation (``None`` for a failure).
+    parameters : dict
+        Parameters of the computation (``info.json``), empty for a failure.
     """
 
     path: Path
@@ -58,6 +62,8 @@ class ResultEntry:
     psi_map: float | None = None
     psi_repaired: float | None = None
     error: str | None = None
+    method: str | None = None
+    parameters: dict[str, Any] = field(default_factory=dict, hash=False)
 
     @property
     def failed(self) -> bool:
@@ -107,6 +113,8 @@ def _from_zip(path: Path) -> ResultEntry:
         partition_fractions=fractions,
         psi_map=_float(stats.get("psi_map")),
         psi_repaired=_float(stats.get("psi_repaired")),
+        method=str(record.info["method"]) if record.info.get("method") else None,
+        parameters=dict(record.info.get("parameters") or {}),
     )
 
 

@@ -1,4 +1,10 @@
-"""Comparison plots for a paper: degree vs noise per system, distribution of partition sizes.
+"""Comparison plots for a paper: degree vs noise per system, found vs expected degree,
+distribution of partition sizes.
+
+Every point of a degree plot is the mean over its results, with the standard deviation as
+error bar and the number of results (n) written next to it. When the results carry an
+expected degree (the label :data:`EXPECTED_LABEL`, as simulated sets do), a panel plots the
+degree found against it, with the line y = x of a perfect measure.
 
 Only :class:`matplotlib.figure.Figure` with the Agg canvas is used, never ``pyplot``: the
 functions work on a headless machine and leave no global state behind. Series use the
@@ -24,6 +30,7 @@ from .collect import ResultEntry, label_names, sort_key
 from .overlay import partition_colour
 
 __all__ = [
+    "EXPECTED_LABEL",
     "NOISE_LABELS",
     "comparison_figure",
     "numeric_label",
@@ -34,6 +41,8 @@ __all__ = [
 
 #: Label names taken as the x axis of the degree plot when none is named (first match).
 NOISE_LABELS: tuple[str, ...] = ("noise", "noise_level", "sigma", "level", "error")
+#: Label of the expected (true) degree of a result (simulated maps).
+EXPECTED_LABEL = "expected_degree"
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*")
 _ALL = "all"
 
@@ -129,6 +138,7 @@ def plot_degree_vs(
         means = np.array([np.mean(by_x[x]) for x in xs])
         stds = np.array([np.std(by_x[x]) for x in xs])
         offset = -width / 2 + (width * i / (len(series) - 1) if len(series) > 1 else 0.0)
+        style = _style(i)
         ax.errorbar(
             xs + offset,
             means,
@@ -137,14 +147,28 @@ def plot_degree_vs(
             linewidth=1.5,
             markersize=6,
             label=name if series_label else None,
-            **_style(i),  # type: ignore[arg-type]
+            **style,  # type: ignore[arg-type]
         )
+        for x, mean, std in zip(xs, means, stds, strict=True):
+            ax.annotate(
+                f"n={len(by_x[float(x)])}",
+                (x + offset, mean + std),
+                xytext=(3, 3),
+                textcoords="offset points",
+                fontsize="x-small",
+                color=str(style["color"]),
+            )
+    if x_label == EXPECTED_LABEL and xs_all:
+        lo, hi = xs_all[0], xs_all[-1]
+        ax.plot([lo, hi], [lo, hi], linestyle="--", color="0.45", linewidth=1.0, label="y = x")
+        ax.set_ylabel("degree found")
     ax.set_xlabel(x_label)
-    ax.set_ylabel("degree of brokenness")
+    if x_label != EXPECTED_LABEL:
+        ax.set_ylabel("degree of brokenness")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(bottom=-0.25)
     ax.grid(True, alpha=0.3)
-    if series_label:
+    if series_label or x_label == EXPECTED_LABEL:
         ax.legend(title=series_label, fontsize="small", title_fontsize="small")
     n = len(ok)
     ax.set_title(f"Degree vs {x_label} (mean \N{PLUS-MINUS SIGN} s.d., n = {n})", fontsize="medium")
@@ -206,7 +230,9 @@ def comparison_figure(
         From :func:`brokenness.report.collect_results`.
     x_label : str, optional
         Numeric label of the degree plot; by default the first of :data:`NOISE_LABELS`
-        the results have. Without one the figure has only the partition-size panel.
+        the results have. Results with a numeric :data:`EXPECTED_LABEL` add a panel of
+        the degree found against the expected one (line y = x). Without either the figure
+        has only the partition-size panel.
     series_label : str, optional
         Label that makes the series; default ``system`` when the results have it.
     width_inches : float
@@ -230,13 +256,15 @@ def comparison_figure(
     elif series_label not in names:
         raise ParameterError(f"no result has the label {series_label!r}")
     x = numeric_label(ok, x_label)
-    panels = 2 if x is not None else 1
-    width = width_inches if panels == 2 else width_inches * 0.55
+    expected = EXPECTED_LABEL if x != EXPECTED_LABEL and _is_numeric(ok, EXPECTED_LABEL) else None
+    degree_panels = [v for v in (x, expected) if v is not None]
+    panels = len(degree_panels) + 1
+    width = width_inches * (0.55 + 0.45 * (panels - 1))
     fig = Figure(figsize=(width, 0.42 * width_inches), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, panels, squeeze=False)[0]
-    if x is not None:
-        plot_degree_vs(axes[0], ok, x, series_label)
+    for ax, label in zip(axes, degree_panels, strict=False):
+        plot_degree_vs(ax, ok, label, series_label)
     plot_partition_sizes(axes[-1], ok, series_label)
     return fig
 

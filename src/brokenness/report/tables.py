@@ -1,15 +1,21 @@
 """Comparison tables: results grouped by their labels (system, dataset, noise...).
 
 One row per group of results that share the values of the grouping labels: the number of
-results, failures, mean and median degree, the mean share of the largest partition, and
-the mean picture distances Psi of the aligned and of the repaired map. Written as CSV or
-Markdown (by the file's suffix) and shown in the terminal with rich.
+results, failures, mean, median, standard deviation, minimum and maximum degree, the mean
+share of the largest partition, and the mean picture distances Psi of the aligned and of
+the repaired map. Written as CSV or Markdown (by the file's suffix) and shown in the
+terminal with rich.
+
+Results computed with different methods or parameters are never pooled silently: unless
+asked to (``pool=True``), the method and the parameters that differ between the results
+(:data:`RUN_COLUMNS`) are grouped by as well, as if they were labels.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -26,6 +32,7 @@ __all__ = [
     "FIGURES",
     "GroupRow",
     "GroupTable",
+    "RUN_COLUMNS",
     "group_table",
     "rich_table",
     "table_csv",
@@ -40,6 +47,9 @@ FIGURES: tuple[str, ...] = (
     "failed",
     "mean_degree",
     "median_degree",
+    "sd_degree",
+    "min_degree",
+    "max_degree",
     "mean_largest_fraction",
     "mean_psi_map",
     "mean_psi_repaired",
@@ -52,11 +62,19 @@ _SHORT = {
     "failed": "failed",
     "mean_degree": "deg mean",
     "median_degree": "deg median",
+    "sd_degree": "deg s.d.",
+    "min_degree": "min",
+    "max_degree": "max",
     "mean_largest_fraction": "largest",
     "mean_psi_map": "\N{GREEK CAPITAL LETTER PSI} map",
     "mean_psi_repaired": "\N{GREEK CAPITAL LETTER PSI} repaired",
 }
 _SUFFIXES = {".csv": "csv", ".md": "markdown", ".markdown": "markdown"}
+#: Grouping columns made from how a result was computed, not from its labels: its method
+#: and the parameters that differ between the results compared (``k=v; k=v``).
+RUN_COLUMNS: tuple[str, ...] = ("method", "parameters")
+#: Parameters that differ from run to run by design, never a reason to keep results apart.
+_RUN_SPECIFIC = frozenset({"seed", "working_resolution"})
 
 
 @dataclass(frozen=True)
@@ -75,6 +93,9 @@ class GroupRow:
     failed : int
         Failed pairs (batch error files).
     mean_degree, median_degree : float or None
+    sd_degree : float or None
+        Sample standard deviation of the degrees (``None`` under two results).
+    min_degree, max_degree : int or None
     mean_largest_fraction : float or None
         Mean share of the occupied cells in the largest partition.
     mean_psi_map, mean_psi_repaired : float or None
@@ -87,6 +108,9 @@ class GroupRow:
     failed: int
     mean_degree: float | None
     median_degree: float | None
+    sd_degree: float | None
+    min_degree: int | None
+    max_degree: int | None
     mean_largest_fraction: float | None
     mean_psi_map: float | None
     mean_psi_repaired: float | None
@@ -135,14 +159,47 @@ def _group_row(key: tuple[str | None, ...], members: Sequence[ResultEntry]) -> G
         failed=sum(1 for e in members if e.failed),
         mean_degree=_mean(degrees),
         median_degree=float(np.median(degrees)) if degrees else None,
+        sd_degree=float(np.std(degrees, ddof=1)) if len(degrees) > 1 else None,
+        min_degree=int(min(degrees)) if degrees else None,
+        max_degree=int(max(degrees)) if degrees else None,
         mean_largest_fraction=_mean(largest),
         mean_psi_map=_mean(psi_map),
         mean_psi_repaired=_mean(psi_rep),
     )
 
 
+def _parameter_text(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def run_settings(entries: Sequence[ResultEntry]) -> dict[str, dict[int, str]]:
+    """The :data:`RUN_COLUMNS` that differ between the (successful) results.
+
+    Returns ``{column: {id(entry): value}}`` for ``method`` when the results were computed
+    with more than one method, and for ``parameters`` when some parameter (other than the
+    seed) differs: the value lists those parameters as ``name=value; ...``. Failures have
+    no setting; :func:`group_table` puts them with the results of their labels.
+    """
+    done = [e for e in entries if not e.failed]
+    out: dict[str, dict[int, str]] = {}
+    methods = {e.method or "" for e in done}
+    if len(methods) > 1:
+        out["method"] = {id(e): e.method or "?" for e in done}
+    names = sorted({k for e in done for k in e.parameters} - _RUN_SPECIFIC)
+    varying = [k for k in names if len({_parameter_text(e.parameters.get(k)) for e in done}) > 1]
+    if varying:
+        out["parameters"] = {
+            id(e): "; ".join(f"{k}={_parameter_text(e.parameters.get(k))}" for k in varying)
+            for e in done
+        }
+    return out
+
+
 def group_table(
-    entries: Sequence[ResultEntry], group_by: Sequence[str] | None = None
+    entries: Sequence[ResultEntry],
+    group_by: Sequence[str] | None = None,
+    *,
+    pool: bool = False,
 ) -> GroupTable:
     """Group results by labels and compute each group's figures.
 
@@ -154,6 +211,10 @@ def group_table(
         Label names. Default: every label the results have except ``seed`` (seeds are what
         a mean is taken over), ``system``, ``method`` and ``dataset`` first; no labels at
         all gives one group of everything.
+    pool : bool
+        Pool results computed with different methods or parameters. By default they are
+        kept apart: the method and the differing parameters become grouping columns
+        (:data:`RUN_COLUMNS`, after the labels) whenever the results differ in them.
 
     Returns
     -------
@@ -179,11 +240,24 @@ def group_table(
         if unknown:
             have = ", ".join(names) if names else "none"
             raise ParameterError(f"no result has the label {unknown[0]!r} (labels: {have})")
+    settings = {} if pool else run_settings(entries)
+    run_cols = tuple(c for c in RUN_COLUMNS if c in settings and c not in keys)
     groups: dict[tuple[str | None, ...], list[ResultEntry]] = {}
+    failures: list[ResultEntry] = []
     for e in entries:
-        groups.setdefault(tuple(e.labels.get(k) for k in keys), []).append(e)
+        if run_cols and e.failed:
+            failures.append(e)
+            continue
+        key = tuple(e.labels.get(k) for k in keys)
+        key += tuple(settings[c].get(id(e)) for c in run_cols)
+        groups.setdefault(key, []).append(e)
+    for e in failures:  # with the results of its labels when they were computed one way
+        label_key = tuple(e.labels.get(k) for k in keys)
+        same = [k for k in groups if k[: len(keys)] == label_key]
+        key = same[0] if len(same) == 1 else label_key + (None,) * len(run_cols)
+        groups.setdefault(key, []).append(e)
     ordered = sorted(groups, key=lambda key: [sort_key(v) for v in key])
-    return GroupTable(keys, tuple(_group_row(k, groups[k]) for k in ordered))
+    return GroupTable(keys + run_cols, tuple(_group_row(k, groups[k]) for k in ordered))
 
 
 def _text(value: Any, float_format: str) -> str:
@@ -250,7 +324,8 @@ def rich_table(table: GroupTable, title: str | None = None) -> Any:
     out = Table(
         title=title,
         header_style="bold",
-        caption="deg: degree of brokenness; largest: mean share of the largest partition; "
+        caption="n: results with a degree; deg: degree of brokenness (s.d. over the n, min, "
+        "max); largest: mean share of the largest partition; "
         "\N{GREEK CAPITAL LETTER PSI}: picture distance to the reference (cells)",
     )
     for c in table.columns:
