@@ -7,9 +7,14 @@
 - :mod:`.executors`: in this process, a process pool, or Dask, one map per worker;
 - :mod:`.run`: :func:`timeline`, reading the bag lazily, reuse and resume;
 - :mod:`.output`: CSV and JSON; :mod:`.plot`: degree and largest share against time.
+
+``brokenness.timeline`` (the package attribute) is the function :func:`timeline`; import
+the rest from here: ``from brokenness.timeline import TimelineResult``.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from .events import find_events
 from .frames import (
@@ -21,7 +26,6 @@ from .frames import (
     TimelineResult,
 )
 from .output import timeline_csv, write_timeline_csv, write_timeline_json
-from .plot import plot_timeline
 from .run import timeline
 
 __all__ = [
@@ -38,3 +42,11 @@ __all__ = [
     "write_timeline_csv",
     "write_timeline_json",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "plot_timeline":  # matplotlib only when a plot is asked for
+        from .plot import plot_timeline
+
+        return plot_timeline
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,17 +15,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
-
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..grid import OccupancyMap
@@ -34,10 +24,24 @@ from .executors import make_executor
 from .frames import TimelineFrame, TimelineResult
 from .measure import DEFAULT_MIN_OCCUPIED, FrameJob, FrameOptions, frame_from_record, map_digest
 
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.progress import Progress
+
 __all__ = ["timeline"]
 
 
 def _progress(console: Console | None, enabled: bool) -> Progress:
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
     return Progress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
@@ -178,6 +182,8 @@ def timeline(
         info={"timeline_bag": {"bag": str(bag), "topic": topic, "reference": ref_text}},
     )
     if progress is None:
+        from rich.console import Console
+
         progress = (console or Console(stderr=True)).is_terminal
     total = _expected_total(bag_path, topic, every, period) if progress else None
 
