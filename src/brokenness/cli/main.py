@@ -22,7 +22,7 @@ from ..errors import BrokennessError
 __all__ = ["main"]
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "compare")
+SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "compare", "timeline")
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2

@@ -152,17 +152,17 @@ class DaskExecutor:
         self._ref = self._client.scatter(reference, broadcast=True, hash=False)
         self._options, self._done = options, done
         self._pending: dict[Any, FrameJob] = {}
+        self._finished = distributed.as_completed([], loop=self._client.loop)
 
     def _collect(self) -> None:
-        finished = self._dd.wait(list(self._pending), return_when="FIRST_COMPLETED").done
-        for fut in finished:
-            job = self._pending.pop(fut)
-            try:
-                frame = fut.result()
-            except Exception as exc:  # worker lost, killed...
-                frame = _failed(job, None, f"worker failed: {_one_line(exc)}", 0.0)
-            fut.release()
-            self._done(frame)
+        fut = next(self._finished)  # blocks until one of the pending frames is done
+        job = self._pending.pop(fut)
+        try:
+            frame = fut.result()
+        except Exception as exc:  # worker lost, killed...
+            frame = _failed(job, None, f"worker failed: {_one_line(exc)}", 0.0)
+        fut.release()
+        self._done(frame)
 
     def submit(self, m: OccupancyMap, job: FrameJob) -> None:
         while len(self._pending) >= self._limit:
@@ -178,6 +178,7 @@ class DaskExecutor:
             pure=False,
         )
         self._pending[fut] = job
+        self._finished.add(fut)
 
     def drain(self) -> None:
         while self._pending:
