@@ -91,6 +91,7 @@ def timeline(
     scheduler: str | None = None,
     local_cluster: bool = False,
     min_occupied_cells: int = DEFAULT_MIN_OCCUPIED,
+    dpi: int = 100,
     options: Mapping[str, Any] | None = None,
     progress: bool | None = False,
     console: Console | None = None,
@@ -124,6 +125,9 @@ def timeline(
         Start a Dask ``LocalCluster`` with ``workers`` processes, close it afterwards.
     min_occupied_cells : int
         A map with fewer occupied cells is *not measured* ("too little mapped yet").
+    dpi : int
+        Resolution of the overlay picture in each result zip (drawing it is most of the
+        cost of ``save_results``).
     options : mapping, optional
         Keyword options of :func:`brokenness.compute_brokenness` (method, threshold...).
     progress : bool or None
@@ -179,6 +183,7 @@ def timeline(
         compute=compute,
         min_occupied_cells=int(min_occupied_cells),
         save_dir=None if save_dir is None else str(save_dir),
+        dpi=int(dpi),
         info={"timeline_bag": {"bag": str(bag), "topic": topic, "reference": ref_text}},
     )
     if progress is None:
