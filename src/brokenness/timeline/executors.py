@@ -28,9 +28,32 @@ Done = Callable[[TimelineFrame], None]
 _REFERENCE: OccupancyMap | None = None  # a pool worker's reference, set once per process
 
 
+def _one_thread() -> None:
+    """OpenCV (the registration's DFTs) on one thread: the workers are the parallelism.
+
+    By default OpenCV uses every core in every process; two workers on two cores then
+    run four threads and each frame takes twice as long (measured: bench_timeline.py).
+    """
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)
+    except (ImportError, AttributeError):  # pragma: no cover - cv2 is a dependency
+        pass
+
+
 def _init_worker(reference: OccupancyMap) -> None:
     global _REFERENCE
+    _one_thread()
     _REFERENCE = reference
+
+
+def _cluster_task(
+    m: OccupancyMap, reference: OccupancyMap, job: FrameJob, options: FrameOptions
+) -> TimelineFrame:
+    """A frame on a worker of the local cluster (one thread per worker process)."""
+    _one_thread()
+    return measure_frame(m, reference, job, options)
 
 
 def _pool_task(m: OccupancyMap, job: FrameJob, options: FrameOptions) -> TimelineFrame:
@@ -93,7 +116,8 @@ class PoolExecutor:
             self._collect(cf.FIRST_COMPLETED)
 
     def close(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        # after drain: wait for the workers to exit; on an error or Ctrl-C: do not
+        self._pool.shutdown(wait=not self._pending, cancel_futures=True)
 
 
 def _import_distributed() -> Any:
@@ -169,7 +193,7 @@ class DaskExecutor:
             self._collect()
         data = self._client.scatter(m, hash=False)
         fut = self._client.submit(
-            measure_frame,
+            _cluster_task if self._cluster is not None else measure_frame,
             data,
             self._ref,
             job,
