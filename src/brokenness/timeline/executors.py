@@ -31,8 +31,8 @@ _REFERENCE: OccupancyMap | None = None  # a pool worker's reference, set once pe
 def _one_thread() -> None:
     """OpenCV (the registration's DFTs) on one thread: the workers are the parallelism.
 
-    By default OpenCV uses every core in every process; two workers on two cores then
-    run four threads and each frame takes twice as long (measured: bench_timeline.py).
+    By default OpenCV uses every core in every process: two workers on two cores would run
+    four threads. (The timeline's reading and this process's OpenCV keep their defaults.)
     """
     try:
         import cv2
