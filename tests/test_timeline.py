@@ -65,6 +65,11 @@ def check_run(tl, run, kept):
     assert breaks[0].degree_before == 0 and breaks[0].degree_after == 1
     new = breaks[0].partitions
     assert len(new) == 1 and 0.0 < new[0].fraction < 0.5
+    # as it stands in the last broken frame: turned by the bump's rotation, larger
+    (settled,) = breaks[0].settled
+    assert abs(abs(settled.rotation_offset_deg) - ROTATION_DEG) < 2.0
+    assert settled.fraction >= new[0].fraction
+    assert pos[breaks[0].settled_message_index] == pos[repairs[0].message_index] - 1
     assert breaks[0].time == pytest.approx(run.stamps_ns[breaks[0].message_index] / 1e9 - 5.0)
     r = run.repair_message
     first_kept_repaired = next(i for i in kept if i >= r)
@@ -177,6 +182,17 @@ def test_dask_local_cluster(run, bags):
     assert [f.degree for f in tl.frames] == [f.degree for f in inline.frames]
 
 
+def test_dask_scheduler_address(run, bags):
+    distributed = pytest.importorskip("distributed")
+    # an in-process cluster (threads) starts fast; the client path is the same
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        tl = timeline(bags["ros1"], run.reference, every=13, scheduler=cluster.scheduler_address)
+    assert [f.message_index for f in tl.frames] == [0, 13, 26]
+    assert all(f.measured for f in tl.frames)
+
+
 def test_bad_options(run, bags):
     with pytest.raises(ParameterError):
         timeline(bags["ros1"], run.reference, every=2, period=1.0)
@@ -260,6 +276,8 @@ def test_events_skip_unmeasured_and_name_the_new_partition():
         (EVENT_REPAIR, 5, 4),
     ]
     assert [p.index for p in events[0].partitions] == [1, 2]
+    assert events[0].settled == events[0].partitions and events[0].settled_message_index == 3
+    assert events[1].settled == ()
     assert [p.rotation_offset_deg for p in events[1].partitions] == [-45.0]  # the one gone
     assert find_events([frame(0, 1, [a, part(1, 0.2, 10.0)])])[0].degree_before is None
     assert math.isclose(events[0].partitions[1].rotation_offset_deg, -45.0)

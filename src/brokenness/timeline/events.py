@@ -65,23 +65,30 @@ def find_events(frames: Sequence[TimelineFrame]) -> tuple[TimelineEvent, ...]:
     """The breaks and repairs of a sequence of frames (in message order).
 
     The first measured frame is a break when it is already broken (``degree_before`` is then
-    ``None``: the change happened before anything was measured).
+    ``None``: the change happened before anything was measured). A break's ``settled``
+    partitions are those of the last frame of the same degree that match no partition of
+    the frame before the break.
     """
+    measured = [f for f in frames if f.measured and f.degree is not None]
     events: list[TimelineEvent] = []
-    prev: TimelineFrame | None = None
-    for f in frames:
-        if not f.measured or f.degree is None:
-            continue
+    for i, f in enumerate(measured):
+        assert f.degree is not None
+        prev = measured[i - 1] if i else None
         before = None if prev is None else prev.degree
-        if before is None and f.degree > 0:
-            events.append(_event(EVENT_BREAK, f, None, _unmatched(f.partitions, (), f.degree)))
-        elif before is not None and prev is not None and f.degree > before:
-            new = _unmatched(f.partitions, prev.partitions, f.degree - before)
-            events.append(_event(EVENT_BREAK, f, prev, new))
+        old = () if prev is None else prev.partitions
+        if (before is None and f.degree > 0) or (before is not None and f.degree > before):
+            rise = f.degree - (before or 0)
+            last = f
+            for g in measured[i + 1 :]:
+                if g.degree != f.degree:
+                    break
+                last = g
+            new = _unmatched(f.partitions, old, rise)
+            settled = _unmatched(last.partitions, old, rise)
+            events.append(_event(EVENT_BREAK, f, prev, new, settled, last.message_index))
         elif before is not None and prev is not None and f.degree < before:
             gone = _unmatched(prev.partitions, f.partitions, before - f.degree)
             events.append(_event(EVENT_REPAIR, f, prev, gone))
-        prev = f
     return tuple(events)
 
 
@@ -90,6 +97,8 @@ def _event(
     f: TimelineFrame,
     prev: TimelineFrame | None,
     parts: tuple[TimelinePartition, ...],
+    settled: tuple[TimelinePartition, ...] = (),
+    settled_index: int | None = None,
 ) -> TimelineEvent:
     assert f.degree is not None
     return TimelineEvent(
@@ -101,4 +110,6 @@ def _event(
         degree_before=None if prev is None else prev.degree,
         degree_after=f.degree,
         partitions=parts,
+        settled=settled,
+        settled_message_index=settled_index,
     )

@@ -253,6 +253,13 @@ class TimelineEvent:
         For a break, the new partitions (as in the frame where they appear: share, rotation
         offset and displacement against the largest partition); for a repair, the
         partitions of the previous frame that are gone.
+    settled : tuple of TimelinePartition
+        For a break: the new partitions as they stand in the last frame of the same
+        degree (before the degree changes again, or at the end). A partition first seen
+        small may be registered at a wrong place; with more of it mapped it settles.
+        Empty for a repair.
+    settled_message_index : int or None
+        The frame of ``settled``.
     """
 
     kind: str
@@ -263,6 +270,8 @@ class TimelineEvent:
     degree_before: int | None
     degree_after: int
     partitions: tuple[TimelinePartition, ...] = field(default=())
+    settled: tuple[TimelinePartition, ...] = field(default=())
+    settled_message_index: int | None = None
 
     def describe(self) -> str:
         """One line for people."""
@@ -271,17 +280,11 @@ class TimelineEvent:
             f"t={self.time:.1f} s (message {self.message_index}): {self.kind}, "
             f"degree {before} -> {self.degree_after}"
         )
-        parts = []
-        for p in self.partitions:
-            shift = (
-                f"{p.displacement_m:.2f} m"
-                if p.displacement_m is not None
-                else f"{p.displacement:.1f} cells"
-            )
-            parts.append(
-                f"{p.fraction:.1%} of the map, {p.rotation_offset_deg:+.1f} deg, {shift} off"
-            )
-        return head + ("; " + "; ".join(parts) if parts else "")
+        text = head + "".join(f"; {_describe(p)}" for p in self.partitions)
+        if self.settled and self.settled_message_index != self.message_index:
+            later = "; ".join(_describe(p) for p in self.settled)
+            text += f" (message {self.settled_message_index}: {later})"
+        return text
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
@@ -294,7 +297,18 @@ class TimelineEvent:
             "degree_before": self.degree_before,
             "degree_after": self.degree_after,
             "partitions": [p.to_dict() for p in self.partitions],
+            "settled": [p.to_dict() for p in self.settled],
+            "settled_message_index": self.settled_message_index,
         }
+
+
+def _describe(p: TimelinePartition) -> str:
+    shift = (
+        f"{p.displacement_m:.2f} m"
+        if p.displacement_m is not None
+        else f"{p.displacement:.1f} cells"
+    )
+    return f"{p.fraction:.1%} of the map, {p.rotation_offset_deg:+.1f} deg, {shift} off"
 
 
 @dataclass(frozen=True)
