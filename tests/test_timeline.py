@@ -186,7 +186,7 @@ def test_dask_scheduler_address(run, bags):
     distributed = pytest.importorskip("distributed")
     # an in-process cluster (threads) starts fast; the client path is the same
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
     ) as cluster:
         tl = timeline(bags["ros1"], run.reference, every=13, scheduler=cluster.scheduler_address)
     assert [f.message_index for f in tl.frames] == [0, 13, 26]
@@ -205,7 +205,7 @@ def test_bad_options(run, bags):
 
 
 # -- the reader ------------------------------------------------------------------------------
-def test_iter_bag_maps_lazy_and_single_map_api_intact(run, bags):
+def test_iter_bag_maps_lazy_and_single_map_api_intact(run, bags, tmp_path):
     for bag in (bags["ros1"], bags["ros2"]):
         it = iter_bag_maps(bag)
         first = next(it)
@@ -218,6 +218,11 @@ def test_iter_bag_maps_lazy_and_single_map_api_intact(run, bags):
         assert last.origin == pytest.approx(run.simulation.map.origin)
     with pytest.raises(MapError):
         next(iter_bag_maps(bags["ros1"], every=0))
+    (db3,) = Path(bags["ros2"]).glob("*.db3")  # a storage file: read through its folder
+    assert [b.index for b in iter_bag_maps(db3, every=10)] == [0, 10, 20, len(run.ends) - 1]
+    lone = tmp_path / "lone.db3"  # metadata.yaml lost: read with the storage plugin
+    lone.write_bytes(db3.read_bytes())
+    assert [b.index for b in iter_bag_maps(lone, every=10)] == [0, 10, 20, len(run.ends) - 1]
 
 
 def test_map_prefixes_equal_map_scans(run):
