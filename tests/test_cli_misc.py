@@ -28,6 +28,7 @@ REQUIRED = {
     "batch": ["m.csv", "--out", "d"],
     "compare": ["d"],
     "report": ["d", "--html", "o.html"],
+    "timeline": ["b.bag", "r.yaml"],
 }
 
 

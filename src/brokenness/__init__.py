@@ -8,7 +8,9 @@ relative to each other.
 The pipeline, one subpackage each: :mod:`~brokenness.io` (maps in) ->
 :mod:`~brokenness.registration` (iFMI, random walk) -> :mod:`~brokenness.masking`
 (Psi, Psi_2) -> :mod:`~brokenness.measure` (Algorithm 1) -> :mod:`~brokenness.report`
-and :mod:`~brokenness.cli`; :mod:`~brokenness.simulation` makes broken maps of known degree.
+and :mod:`~brokenness.cli`; :mod:`~brokenness.simulation` makes broken maps of known
+degree; :func:`timeline` (in :mod:`brokenness.timeline`) follows the brokenness over the
+map messages of a bag.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from .measure import (
 )
 from .registration import Registration, register
 from .simulation import SimulatedMap, save_simulation, simulate_broken_map
+from .timeline import timeline  # the function (the subpackage: brokenness.timeline.*)
 from .transform import RigidTransform
 
 __all__ = [
@@ -67,4 +70,5 @@ __all__ = [
     "save_map",
     "save_simulation",
     "simulate_broken_map",
+    "timeline",
 ]

@@ -24,7 +24,15 @@ from ..errors import BrokennessError
 __all__ = ["main"]
 
 #: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "compare", "report")
+SUBCOMMANDS: tuple[str, ...] = (
+    "compute",
+    "register",
+    "simulate",
+    "batch",
+    "compare",
+    "report",
+    "timeline",
+)
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2

@@ -34,7 +34,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -45,7 +47,14 @@ from ..grid import OccupancyMap
 from ..limits import check_cells, resolution_in_range
 from ._files import check_regular, one_line
 
-__all__ = ["OCCUPANCY_GRID", "load_bag_map", "quaternion_yaw"]
+__all__ = [
+    "OCCUPANCY_GRID",
+    "BagMap",
+    "count_bag_maps",
+    "iter_bag_maps",
+    "load_bag_map",
+    "quaternion_yaw",
+]
 
 #: Message type of an occupancy grid, as ``rosbags`` names it for ROS 1 and ROS 2 alike.
 OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
@@ -245,3 +254,167 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     except Exception as exc:  # rosbags raises many kinds on damaged files
         text = one_line(exc) or type(exc).__name__
         raise MapFormatError(f"{source}: cannot read the bag ({text})") from None
+
+
+# -- every message ----------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class BagMap:
+    """One map message of a bag, as :func:`iter_bag_maps` yields it.
+
+    Attributes
+    ----------
+    index : int
+        Position of the message on its topic (0-based, counting every message, also those
+        thinned out).
+    stamp_ns : int
+        Time the bag recorded the message, nanoseconds.
+    header_stamp : float or None
+        ``header.stamp`` of the message, seconds (``None`` when it is zero).
+    map : OccupancyMap
+        The map (as :func:`load_bag_map` reads it).
+    """
+
+    index: int
+    stamp_ns: int
+    header_stamp: float | None
+    map: OccupancyMap
+
+
+@contextmanager
+def _open_raw(
+    p: Path, topic: str, source: str
+) -> Iterator[tuple[Iterator[tuple[int, bytes]], Callable[[bytes], Any], int | None]]:
+    """(stamp, raw) of every message on ``topic``, a deserialiser, and the message count."""
+    if p.is_dir():
+        if not (p / "metadata.yaml").is_file():
+            raise MapFormatError(f"{source}: a rosbag2 folder needs a metadata.yaml")
+        paths = [p]
+    elif p.suffix.lower() == ".bag":
+        paths = [p]
+    elif p.suffix.lower() in _STORAGE_SUFFIXES and _inside_bag_folder(p):
+        paths = [p.parent]
+    elif p.suffix.lower() in _STORAGE_SUFFIXES:
+        from rosbags.rosbag2.storage_mcap import McapReader
+        from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+        storage: McapReader | Sqlite3Reader = (
+            McapReader(p) if p.suffix.lower() == ".mcap" else Sqlite3Reader(p)
+        )
+        storage.open()
+        try:
+            conns = _pick(storage.connections, topic, source)
+            store = _typestore()
+            raw = ((stamp, bytes(data)) for _c, stamp, data in storage.messages(connections=conns))
+            yield raw, lambda b: store.deserialize_cdr(b, OCCUPANCY_GRID), None
+        finally:
+            storage.close()
+        return
+    else:
+        raise MapFormatError(f"{source}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)")
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader(paths, default_typestore=_typestore()) as reader:
+        conns = _pick(reader.connections, topic, source)
+        counts = [getattr(c, "msgcount", None) for c in conns]
+        total: int | None = sum(int(n) for n in counts if isinstance(n, int))
+        if not all(isinstance(n, int) for n in counts):
+            total = None
+        raw = ((stamp, bytes(data)) for _c, stamp, data in reader.messages(connections=conns))
+        yield raw, lambda b: reader.deserialize(b, OCCUPANCY_GRID), total
+
+
+def _thinned(
+    raw: Iterator[tuple[int, bytes]], every: int, period_ns: int | None
+) -> Iterator[tuple[int, int, bytes]]:
+    """(index, stamp, raw) of the messages kept; the last message is always kept."""
+    kept_stamp: int | None = None
+    held: tuple[int, int, bytes] | None = None  # latest not kept: kept if it is the last
+    for i, (stamp, data) in enumerate(raw):
+        if period_ns is not None:
+            keep = kept_stamp is None or stamp - kept_stamp >= period_ns
+        else:
+            keep = i % every == 0
+        if keep:
+            held, kept_stamp = None, stamp
+            yield i, stamp, data
+        else:
+            held = (i, stamp, data)
+    if held is not None:
+        yield held
+
+
+def iter_bag_maps(
+    path: str | os.PathLike[str],
+    topic: str = "/map",
+    *,
+    every: int = 1,
+    period: float | None = None,
+) -> Iterator[BagMap]:
+    """Every ``nav_msgs/OccupancyGrid`` on ``topic`` of a ROS 1 or ROS 2 bag, lazily.
+
+    One message is deserialised at a time (and only the messages kept), so memory stays at
+    one map however long the bag is. Messages come in the order of their bag time stamps.
+
+    Parameters
+    ----------
+    path : path-like
+        As for :func:`load_bag_map`.
+    topic : str
+        The map topic (default ``/map``).
+    every : int
+        Keep every ``every``-th message (the first, then every ``every``-th after it).
+    period : float, optional
+        Instead: keep a message when at least ``period`` seconds (bag time) have passed since
+        the last one kept. With either, the last message of the topic is always kept.
+
+    Yields
+    ------
+    BagMap
+
+    Raises
+    ------
+    MapError
+        Missing path, no such topic, bad ``every`` / ``period``.
+    MapFormatError
+        Corrupt bag, a topic of another message type, an inconsistent grid.
+    """
+    p = Path(os.fspath(path))
+    source = str(path)
+    if not p.exists():
+        raise MapError(f"{source}: no such file or folder")
+    if not isinstance(topic, str) or not topic:
+        raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise MapError(f"every must be a positive integer, got {every!r}")
+    if period is not None and not (math.isfinite(period) and period >= 0):
+        raise MapError(f"period must be a non-negative number of seconds, got {period!r}")
+    period_ns = None if period is None else int(round(period * 1e9))
+    try:
+        with _open_raw(p, topic, source) as (raw, deserialize, _total):
+            for i, stamp, data in _thinned(raw, every, period_ns):
+                msg = deserialize(data)
+                del data
+                st = msg.header.stamp
+                header = float(st.sec) + 1e-9 * float(st.nanosec)
+                m = _grid_to_map(msg, f"{source}#{topic}[{i}]")
+                del msg
+                yield BagMap(i, int(stamp), header if header > 0 else None, m)
+    except MapError:
+        raise
+    except MemoryError:
+        raise MapFormatError(f"{source}: a message is too large to read") from None
+    except GeneratorExit:
+        raise
+    except Exception as exc:  # rosbags raises many kinds on damaged files
+        text = one_line(exc) or type(exc).__name__
+        raise MapFormatError(f"{source}: cannot read the bag ({text})") from None
+
+
+def count_bag_maps(path: str | os.PathLike[str], topic: str = "/map") -> int | None:
+    """Messages on ``topic`` as the bag's index says (``None`` when it does not say)."""
+    p = Path(os.fspath(path))
+    try:
+        with _open_raw(p, topic, str(path)) as (_raw, _deserialize, total):
+            return total
+    except Exception:  # the reading itself reports the errors
+        return None

@@ -14,7 +14,7 @@ from __future__ import annotations
 from .building import Building, generate_building
 from .bumps import Bump, apply_bumps, draw_bumps, draw_k_bumps
 from .laser import Laser, LaserRun, cast_rays, route_poses, simulate_run
-from .mapper import ScanCounts, counts_to_map, grid_geometry, map_scans, scan_counts
+from .mapper import ScanCounts, counts_to_map, grid_geometry, map_prefixes, map_scans, scan_counts
 from .output import save_simulation
 from .synthetic import SimulatedMap, SimulatedPartition, simulate_broken_map
 from .views import frame_truth, map_in_frame, plan_map
@@ -36,6 +36,7 @@ __all__ = [
     "generate_building",
     "grid_geometry",
     "map_in_frame",
+    "map_prefixes",
     "map_scans",
     "plan_map",
     "route_poses",

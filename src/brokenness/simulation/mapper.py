@@ -24,6 +24,7 @@ Input conventions (shared with :mod:`brokenness.simulation.carmen`):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,6 +41,7 @@ __all__ = [
     "ScanCounts",
     "counts_to_map",
     "grid_geometry",
+    "map_prefixes",
     "map_scans",
     "scan_counts",
 ]
@@ -404,3 +406,74 @@ def map_scans(
         occupied_logodds=occupied_logodds,
         free_logodds=free_logodds,
     )
+
+
+def map_prefixes(
+    poses: ArrayLike,
+    ranges: ArrayLike,
+    angles: ArrayLike,
+    ends: Iterable[int],
+    *,
+    max_range: float,
+    resolution: float,
+    shape: tuple[int, int],
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    step: float = 0.5,
+) -> Iterator[OccupancyMap]:
+    """Maps of growing prefixes of a run: scans ``[0, end)`` for each ``end``, lazily.
+
+    What a SLAM node publishes while it explores: the map so far. The counts are
+    accumulated (each map costs only the scans added since the previous one), so mapping
+    every prefix of a run costs about as much as mapping the whole run once; each map equals
+    :func:`map_scans` of the same scans (default log-odds).
+
+    Parameters
+    ----------
+    poses, ranges, angles
+        The whole run (see :func:`map_scans`).
+    ends : iterable of int
+        Increasing prefix lengths, each in ``[1, N]``.
+    max_range, resolution, shape, origin, step
+        As for :func:`map_scans`.
+
+    Yields
+    ------
+    OccupancyMap
+        One per ``end``.
+
+    Raises
+    ------
+    ParameterError
+        For ends that do not increase or fall outside ``[1, N]``.
+
+    Examples
+    --------
+    >>> maps = map_prefixes([[0.5, 0.5, 0.0], [0.5, 0.5, 1.6]], [[0.3], [0.3]], [0.0], [1, 2],
+    ...                     max_range=4.0, resolution=0.1, shape=(10, 10))
+    >>> [int(m.n_occupied) for m in maps]
+    [1, 2]
+    """
+    p = np.asarray(poses, dtype=float)
+    r = np.asarray(ranges, dtype=float)
+    hits = misses = None
+    start = dropped = 0
+    for end in ends:
+        end = int(end)
+        if not (start < end <= len(p)):
+            raise ParameterError(
+                f"prefix ends must increase within [1, {len(p)}], got {end} after {start}"
+            )
+        c = scan_counts(
+            p[start:end],
+            r[start:end],
+            angles,
+            max_range=max_range,
+            resolution=resolution,
+            shape=shape,
+            origin=origin,
+            step=step,
+        )
+        hits = c.hits if hits is None else hits + c.hits
+        misses = c.misses if misses is None else misses + c.misses
+        start, dropped = end, dropped + c.dropped_hits
+        yield counts_to_map(ScanCounts(hits, misses, c.resolution, c.origin, dropped))

@@ -1,0 +1,244 @@
+"""Where frames are measured: in this process, a local process pool, or a Dask cluster.
+
+Each executor takes one map at a time (``submit``) and calls ``done(frame)`` as frames
+finish. At most ``workers`` maps are in flight: ``submit`` waits for one to finish first,
+so memory stays at one map per worker (plus the one being read from the bag). The reference
+is sent to each worker once (pool initializer; Dask ``scatter(broadcast=True)``), not with
+every map. The patterns are those of :mod:`brokenness.batch.runner` (forkserver pool, Dask
+local cluster or scheduler address, one-line errors for a lost worker).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import logging
+import multiprocessing
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import ParameterError
+from ..grid import OccupancyMap
+from .frames import TimelineFrame
+from .measure import FrameJob, FrameOptions, _failed, measure_frame
+
+__all__ = ["DaskExecutor", "InlineExecutor", "PoolExecutor", "make_executor"]
+
+Done = Callable[[TimelineFrame], None]
+
+_REFERENCE: OccupancyMap | None = None  # a pool worker's reference, set once per process
+
+
+def _one_thread() -> None:
+    """OpenCV (the registration's DFTs) on one thread: the workers are the parallelism.
+
+    By default OpenCV uses every core in every process: two workers on two cores would run
+    four threads. (The timeline's reading and this process's OpenCV keep their defaults.)
+    """
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)
+    except (ImportError, AttributeError):  # pragma: no cover - cv2 is a dependency
+        pass
+
+
+def _init_worker(reference: OccupancyMap) -> None:
+    global _REFERENCE
+    _one_thread()
+    _REFERENCE = reference
+
+
+def _cluster_task(
+    m: OccupancyMap, reference: OccupancyMap, job: FrameJob, options: FrameOptions
+) -> TimelineFrame:
+    """A frame on a worker of the local cluster (one thread per worker process)."""
+    _one_thread()
+    return measure_frame(m, reference, job, options)
+
+
+def _pool_task(m: OccupancyMap, job: FrameJob, options: FrameOptions) -> TimelineFrame:
+    assert _REFERENCE is not None, "worker not initialised"
+    return measure_frame(m, _REFERENCE, job, options)
+
+
+def _one_line(exc: BaseException) -> str:
+    from ..batch.runner import one_line
+
+    return one_line(exc)
+
+
+class InlineExecutor:
+    """Measure each frame right away, in this process."""
+
+    def __init__(self, reference: OccupancyMap, options: FrameOptions, done: Done) -> None:
+        self._ref, self._options, self._done = reference, options, done
+
+    def submit(self, m: OccupancyMap, job: FrameJob) -> None:
+        self._done(measure_frame(m, self._ref, job, self._options))
+
+    def drain(self) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class PoolExecutor:
+    """A local process pool (``forkserver``: workers do not inherit the progress thread)."""
+
+    def __init__(
+        self, reference: OccupancyMap, options: FrameOptions, done: Done, workers: int
+    ) -> None:
+        ctx = multiprocessing.get_context("forkserver")
+        self._pool = cf.ProcessPoolExecutor(
+            max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(reference,)
+        )
+        self._options, self._done, self._limit = options, done, workers
+        self._pending: dict[cf.Future[TimelineFrame], FrameJob] = {}
+
+    def _collect(self, return_when: str) -> None:
+        finished, _ = cf.wait(list(self._pending), return_when=return_when)
+        for fut in finished:
+            job = self._pending.pop(fut)
+            try:
+                frame = fut.result()
+            except Exception as exc:  # a worker died (out of memory, killed...)
+                frame = _failed(job, None, f"worker failed: {_one_line(exc)}", 0.0)
+            self._done(frame)
+
+    def submit(self, m: OccupancyMap, job: FrameJob) -> None:
+        while len(self._pending) >= self._limit:
+            self._collect(cf.FIRST_COMPLETED)
+        self._pending[self._pool.submit(_pool_task, m, job, self._options)] = job
+
+    def drain(self) -> None:
+        while self._pending:
+            self._collect(cf.FIRST_COMPLETED)
+
+    def close(self) -> None:
+        # after drain: wait for the workers to exit; on an error or Ctrl-C: do not
+        self._pool.shutdown(wait=not self._pending, cancel_futures=True)
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise ParameterError(
+            "running on a Dask cluster needs the optional packages dask and distributed: "
+            "pip install 'brokenness[dask]'"
+        ) from None
+    return distributed
+
+
+class DaskExecutor:
+    """A Dask cluster: a running scheduler, or a ``LocalCluster`` started here."""
+
+    def __init__(
+        self,
+        reference: OccupancyMap,
+        options: FrameOptions,
+        done: Done,
+        workers: int,
+        *,
+        scheduler: str | None,
+        local_cluster: bool,
+        connect_timeout: float = 10.0,
+    ) -> None:
+        self._dd = distributed = _import_distributed()
+        self._cluster = None
+        if local_cluster:
+            try:
+                self._cluster = distributed.LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    host="127.0.0.1",
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
+            except (OSError, RuntimeError, TimeoutError) as exc:
+                raise ParameterError(
+                    f"cannot start a local Dask cluster: {_one_line(exc)}"
+                ) from None
+            self._client = distributed.Client(self._cluster, set_as_default=False)
+        else:
+            try:
+                self._client = distributed.Client(
+                    scheduler, timeout=connect_timeout, set_as_default=False
+                )
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise ParameterError(
+                    f"cannot connect to the Dask scheduler at {scheduler}: {_one_line(exc)}"
+                ) from None
+        n = len(self._client.scheduler_info().get("workers", {})) or workers
+        self._limit = max(1, n)
+        self._ref = self._client.scatter(reference, broadcast=True, hash=False)
+        self._options, self._done = options, done
+        self._pending: dict[Any, FrameJob] = {}
+        self._finished = distributed.as_completed([], loop=self._client.loop)
+
+    def _collect(self) -> None:
+        fut = next(self._finished)  # blocks until one of the pending frames is done
+        job = self._pending.pop(fut)
+        try:
+            frame = fut.result()
+        except Exception as exc:  # worker lost, killed...
+            frame = _failed(job, None, f"worker failed: {_one_line(exc)}", 0.0)
+        fut.release()
+        self._done(frame)
+
+    def submit(self, m: OccupancyMap, job: FrameJob) -> None:
+        while len(self._pending) >= self._limit:
+            self._collect()
+        data = self._client.scatter(m, hash=False)
+        fut = self._client.submit(
+            _cluster_task if self._cluster is not None else measure_frame,
+            data,
+            self._ref,
+            job,
+            self._options,
+            key=f"brokenness-frame-{job.message_index}-{job.digest[:8]}",
+            pure=False,
+        )
+        self._pending[fut] = job
+        self._finished.add(fut)
+
+    def drain(self) -> None:
+        while self._pending:
+            self._collect()
+
+    def close(self) -> None:
+        try:
+            if self._pending:
+                self._client.cancel(list(self._pending))
+            self._client.close()
+        finally:
+            if self._cluster is not None:
+                self._cluster.close()
+
+
+def make_executor(
+    reference: OccupancyMap,
+    options: FrameOptions,
+    done: Done,
+    *,
+    workers: int,
+    scheduler: str | None,
+    local_cluster: bool,
+    connect_timeout: float = 10.0,
+) -> InlineExecutor | PoolExecutor | DaskExecutor:
+    """The executor asked for (Dask when a scheduler or a local cluster is given)."""
+    if scheduler or local_cluster:
+        return DaskExecutor(
+            reference,
+            options,
+            done,
+            workers,
+            scheduler=scheduler,
+            local_cluster=local_cluster,
+            connect_timeout=connect_timeout,
+        )
+    if workers == 1:
+        return InlineExecutor(reference, options, done)
+    return PoolExecutor(reference, options, done, workers)
