@@ -116,3 +116,42 @@ def test_contradiction_is_zero_aligned_and_high_when_misplaced():
     assert aligned.chance == pytest.approx(
         np.count_nonzero(room.occupied) / np.count_nonzero(room.known)
     )
+
+
+# -- the benchmark's fixtures (tests/_controls.py): controls and heavily broken real maps ------
+def _true_matches(result, case, tolerance: float = 3.0) -> int:
+    """How many found partitions match a distinct true part: one to one, each putting the
+    part's cells (median) within ``tolerance`` reference cells of its true place (the
+    benchmark's criterion)."""
+    from scipy.optimize import linear_sum_assignment
+
+    found = [p.transform for p in result.partitions]
+    fits = np.zeros((len(found), len(case.truths)), dtype=bool)
+    for q, truth in enumerate(case.truths):
+        pts = cell_points(case.labels == q)
+        for j, t in enumerate(found):
+            fits[j, q] = float(np.median(t.displacement(truth, pts))) <= tolerance
+    rows, cols = linear_sum_assignment(~fits)
+    return int(fits[rows, cols].sum())
+
+
+def test_benchmark_controls_are_not_measured():
+    from _controls import negative_controls
+
+    for control in negative_controls():
+        result = _not_measured(control.map, control.reference)
+        assert not result.measured and result.degree is None, control.name
+
+
+def test_heavily_broken_real_log_maps_get_only_true_partitions():
+    """The Orebro log at 0.1 m in its own frame, broken into 7 and 9 parts of at least 5 %
+    each: measured, and every partition found is a distinct true part (no spurious piece).
+    Not yet every part: the degree-8 map loses three of its 5-7 % parts (the benchmark's
+    known shortfall), so the degree is asserted within three."""
+    from _controls import broken_real_log_maps
+
+    for case in broken_real_log_maps():
+        result = compute_brokenness(case.map, case.reference)
+        assert result.measured, (case.name, result.reason)
+        assert _true_matches(result, case) == len(result.partitions), case.name
+        assert case.expected_degree - 3 <= result.degree <= case.expected_degree, case.name
