@@ -22,6 +22,10 @@ The recursion, for a map M and a reference R::
         register S with R; count its best hypothesis as a new partition if the cells of
         S it explains coherently pass the stopping rule; reassign every cell
     join partitions that one of their transforms aligns as one piece (measure.partitions)
+    drop partitions that are not real: too few coherent cells (measure.recovery), or a
+        shifted copy at the rotation of another (measure.partitions)
+    measured only if the map's free space does not cross the reference's walls
+        (measure.evidence): else not the same place, no degree
 
 Stopping rule ("nothing significant is left")
 ---------------------------------------------
@@ -101,6 +105,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OCCUPIED, OccupancyMap
+from ..limits import check_threshold
 from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
@@ -219,6 +224,7 @@ def compute_brokenness(
     ref = _as_map(reference, "reference")
     if original.n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
+    check_threshold(opts.loose, ref.shape)  # the neighbourhood it implies fits the limits
     index = ReferenceIndex.build(ref)  # raises for an empty reference
 
     working, to_working = _common_resolution(original, ref)
