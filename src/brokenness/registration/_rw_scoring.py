@@ -32,6 +32,8 @@ __all__: list[str] = []
 KINDS: tuple[int, int] = (OCCUPIED, FREE)
 #: Table value of an unknown cell (and of every point off the map).
 UNKNOWN_VALUE: int = 65535
+#: Points gathered per ``cv2.remap`` call (OpenCV asserts fewer than 32767 columns).
+_REMAP_COLUMNS: int = 32000
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +122,29 @@ def build_tables(states: NDArray[np.int8], max_points: int) -> MapTables:
     )
 
 
+def subsample_tables(tables: MapTables, max_points: int) -> MapTables:
+    """The same tables with at most ``max_points`` cells of each kind (see
+    :func:`sample_indices`); the distance maps are shared, not copied."""
+    points = []
+    weights = []
+    for pts, w, n in zip(tables.points, tables.weights, tables.counts, strict=True):
+        if pts.shape[1] <= max_points:
+            points.append(pts)
+            weights.append(w)
+            continue
+        keep = sample_indices(pts.shape[1], max_points)
+        points.append(np.ascontiguousarray(pts[:, keep]))
+        weights.append(n / keep.size)
+    return MapTables(
+        shape=tables.shape,
+        tables=tables.tables,
+        points=(points[0], points[1]),
+        weights=(weights[0], weights[1]),
+        counts=tables.counts,
+        cap=tables.cap,
+    )
+
+
 def _lookup(
     tables: MapTables, kind_index: int, points: NDArray[np.float32], matrix: NDArray[np.float32]
 ) -> NDArray[np.uint16]:
@@ -130,6 +155,14 @@ def _lookup(
     ``cv2.remap`` with nearest-neighbour interpolation (round half to even, like
     ``numpy.rint``) gathers the table values, reading unknown outside the grid.
     """
+    if points.shape[1] > _REMAP_COLUMNS:  # cv2.remap handles at most 32766 columns
+        return np.concatenate(
+            [
+                _lookup(tables, kind_index, points[:, i : i + _REMAP_COLUMNS], matrix)
+                for i in range(0, points.shape[1], _REMAP_COLUMNS)
+            ],
+            axis=1,
+        )
     coords = matrix @ points
     w = matrix.shape[0] // 2
     values = cv2.remap(
