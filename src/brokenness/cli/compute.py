@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +49,16 @@ def add_parser(subparsers: Any) -> None:
         default=0.02,
         help="smallest partition as a share of the occupied cells (default 0.02)",
     )
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help=(
+            "random-walk only: stop each registration's walk after SECONDS (results then "
+            "depend on the machine; the default iteration budget alone is deterministic)"
+        ),
+    )
     p.add_argument("--topic", default=None, help="map topic when MAP or REFERENCE is a ROS bag")
     p.set_defaults(func=run)
 
@@ -56,14 +69,26 @@ def run(args: argparse.Namespace) -> int:
 
     m = load_map(args.map, topic=args.topic)
     ref = load_map(args.reference, topic=args.topic)
-    result = compute_brokenness(
-        m,
-        ref,
-        method=args.method,
-        seed=args.seed,
-        threshold=args.threshold,
-        min_partition_fraction=args.min_partition_fraction,
-    )
+    budget = getattr(args, "time_budget", None)
+    if budget is not None and not (budget > 0 and math.isfinite(budget)):
+        from ..errors import ParameterError
+
+        raise ParameterError(f"--time-budget must be a positive number of seconds, got {budget}")
+    options: dict[str, Any] = {}
+    if args.method == "random-walk" and budget is not None:
+        options["time_budget"] = budget
+    with _walk_progress(args.method == "random-walk") as progress:
+        if progress is not None:
+            options["progress"] = progress
+        result = compute_brokenness(
+            m,
+            ref,
+            method=args.method,
+            seed=args.seed,
+            threshold=args.threshold,
+            min_partition_fraction=args.min_partition_fraction,
+            registration_options=options or None,
+        )
     if args.overlay:
         from ..report.overlay import render_overlay
 
@@ -92,8 +117,48 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextmanager
+def _walk_progress(wanted: bool) -> Iterator[Callable[[Any], None] | None]:
+    """A progress callback for the random walk, shown with rich on stderr when it is a TTY.
+
+    Yields ``None`` (no display) when not ``wanted`` or stderr is not a terminal, so that
+    pipes and log files get no control characters.
+    """
+    if not wanted or not sys.stderr.isatty():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        TextColumn("random walk, registration {task.fields[call]}"),
+        BarColumn(),
+        TextColumn("step {task.completed}/{task.total}"),
+        TextColumn("best Delta {task.fields[delta]:.2f}, omega {task.fields[omega]:.3f}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+        task = bar.add_task("walk", total=1, call=0, delta=0.0, omega=0.0)
+
+        def show(p: Any) -> None:
+            bar.update(
+                task,
+                completed=p.max_steps if p.done else p.step,
+                total=p.max_steps,
+                call=p.call,
+                delta=p.best_delta,
+                omega=p.best_acceptance,
+            )
+
+        yield show
+
+
 def _json_record(result: BrokennessResult, args: argparse.Namespace) -> dict[str, Any]:
     record = result.to_dict()
+    # The progress display is not a parameter of the result (and not JSON).
+    reg_options = record.get("parameters", {}).get("registration_options") or {}
+    reg_options.pop("progress", None)
     record["map"] = str(args.map)
     record["reference"] = str(args.reference)
     return record
@@ -120,6 +185,8 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
     headers = ["#", "cells", "share", "rot°", "shift (cells)"]
     headers += ["world rot°", "shift (m)"] if metres else []
     headers += ["off°", "off m" if metres else "off", "conf"]
+    omega = any(p.acceptance is not None for p in result.partitions)
+    headers += ["omega"] if omega else []
     for col in headers:
         table.add_column(col, justify="right", no_wrap=True)
     for p in result.partitions:
@@ -131,6 +198,8 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
             row += ["", ""] if w is None else [f"{w.rotation_deg:.2f}", f"{w.tx:.2f}, {w.ty:.2f}"]
         off = p.displacement_m if metres and p.displacement_m is not None else p.displacement
         row += [f"{p.rotation_offset_deg:.2f}", f"{off:.2f}", f"{p.confidence:.2f}"]
+        if omega:
+            row.append("" if p.acceptance is None else f"{p.acceptance:.3f}")
         table.add_row(*row)
     console.print(table)
     console.print(

@@ -333,6 +333,12 @@ def compute_brokenness(
     labels = labels_in_original_grid(labels_working, working, to_working, original)
     n_occupied = original.n_occupied
     assigned = int(np.count_nonzero(labels >= 0))
+    acceptance: list[float | None] = [None] * len(found_partitions)
+    if method == "random-walk":  # the random walk's own quality measure, per partition
+        from ..registration.random_walk import partition_acceptance
+
+        transforms = [p.transform for p in found_partitions]
+        acceptance = partition_acceptance(original.states, ref.states, labels, transforms)
     # Partition sizes and fractions are counted in the original map's cells.
     partitions = tuple(
         Partition(
@@ -345,8 +351,9 @@ def compute_brokenness(
             displacement=p.displacement,
             displacement_m=p.displacement_m,
             step_seconds=p.step_seconds,
+            acceptance=acceptance[i],
         )
-        for p in found_partitions
+        for i, p in enumerate(found_partitions)
     )
     parameters = {
         "threshold": threshold,

@@ -47,6 +47,11 @@ class Partition:
         The same in metres, when the reference resolution is known.
     step_seconds : float
         Time of the recursion step that found it (registration + masking).
+    acceptance : float or None
+        Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` of the
+        partition's cells under its transform (see
+        :func:`brokenness.registration.random_walk.partition_acceptance`); reported for
+        ``method="random-walk"``, ``None`` otherwise.
     """
 
     index: int
@@ -58,6 +63,7 @@ class Partition:
     displacement: float
     displacement_m: float | None
     step_seconds: float
+    acceptance: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
@@ -71,6 +77,7 @@ class Partition:
             "displacement_cells": self.displacement,
             "displacement_m": self.displacement_m,
             "step_seconds": self.step_seconds,
+            "acceptance": self.acceptance,
         }
 
 

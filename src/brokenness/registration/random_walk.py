@@ -375,9 +375,7 @@ class WalkOptions:
         _check_float("tolerance", self.tolerance, allow_zero=True)
         _check_int("restarts", self.restarts, minimum=0)
         if _check_float("worse_acceptance", self.worse_acceptance, allow_zero=True) >= 1:
-            raise ParameterError(
-                f"worse_acceptance must be below 1, got {self.worse_acceptance!r}"
-            )
+            raise ParameterError(f"worse_acceptance must be below 1, got {self.worse_acceptance!r}")
         _check_int("window", self.window, minimum=2)
         _check_float("rotation_step_deg", self.rotation_step_deg)
         if self.translation_step is not None:
@@ -449,9 +447,14 @@ class _PreparedReference:
     spectral: Any  # the iFMI prepared reference, or None
 
 
-#: iFMI options of the spectral start poses: those the recursion uses for iFMI itself (a
-#: remainder mixes partitions, so several rotation and translation peaks are worth a walker).
-_SPECTRAL_OPTIONS: dict[str, Any] = {"rotation_peaks": 3, "peak_ratio": 0.3, "translation_peaks": 3}
+#: iFMI options of the spectral start poses: the wider search the recursion falls back on for
+#: iFMI itself (a remainder mixes partitions, so many rotation and translation peaks are
+#: worth a walker; the walk, not the peak height, decides between them).
+_SPECTRAL_OPTIONS: dict[str, Any] = {
+    "rotation_peaks": 6,
+    "peak_ratio": 0.05,
+    "translation_peaks": 3,
+}
 
 
 class RandomWalkRegistrar:
@@ -609,9 +612,7 @@ def _spectral_hints(
         found = registrar.candidates(spectral, moving, count)
     except MapError:  # pragma: no cover - guarded by the occupied check above
         return []
-    return [
-        RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty) for c in found
-    ]
+    return [RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty) for c in found]
 
 
 # --------------------------------------------------------------------------------------------
