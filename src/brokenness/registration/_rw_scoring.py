@@ -151,7 +151,7 @@ def _lookup(
     """Table values at the transformed points, shape (W, n); unknown off the map.
 
     ``points`` (3, n) homogeneous columns; ``matrix`` (2W, 3) holds the x rows of the ``W``
-    affine transforms, then their y rows. One matrix product gives all coordinates, and
+    affine transforms, then their y rows. Element-wise products give all coordinates, and
     ``cv2.remap`` with nearest-neighbour interpolation (round half to even, like
     ``numpy.rint``) gathers the table values, reading unknown outside the grid.
     """
@@ -163,7 +163,10 @@ def _lookup(
             ],
             axis=1,
         )
-    coords = matrix @ points
+    # Element-wise products, not a matrix product: BLAS would bring its own threads (which
+    # spin for minutes on a loaded machine) and, with them, results that could depend on
+    # the number of threads; these are exact float32 operations in a fixed order.
+    coords = matrix[:, 0:1] * points[0] + matrix[:, 1:2] * points[1] + matrix[:, 2:3]
     w = matrix.shape[0] // 2
     values = cv2.remap(
         tables.tables[kind_index],
