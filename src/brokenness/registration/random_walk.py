@@ -60,9 +60,16 @@ numerical settings of the original implementation were not available to us.
   by 6 lattice over the reference's known cells); plus ``spectral_starts`` = 6 start poses
   from the spectral registration (iFMI hypotheses of the same remainder), which point at
   the partitions' own alignments. Every walker's best state is a candidate: several
-  distinct optima (``dedupe_cells`` = 3: results that move every corner of the moving map
-  by less are one) are returned, lowest Delta first, and the recursion keeps the one under
-  which most cells agree. ``spectral_starts=0`` gives the pure stochastic search.
+  distinct optima (``dedupe_cells`` = 8: results that move every corner of the box of the
+  moving map's occupied cells by less are one) are returned, and the recursion keeps the
+  one under which most cells agree. Each walker offers two states: its lowest Delta and
+  the one that *explained* the most occupied cells on its way (within ``explain_cells``
+  = 2 of a reference wall, the masking's ``c``), and the candidates are ranked greedily by
+  the cells they explain that those ranked before them do not, ties by Delta (ours: on a
+  remainder, whose reference walls other partitions also claim, we measured Delta lowest
+  at a wrong placement of a part while the walk had passed through the right one; and
+  near variants of the best alignment explain little that it does not).
+  ``spectral_starts=0`` gives the pure stochastic search.
 - Budgets: ``max_iterations`` = 300 steps per walker (ours; the iteration budget, counted in
   lockstep steps of all walkers: deterministic) and ``time_budget`` (seconds per
   registration, default none). A time budget makes the result depend on the machine and
@@ -115,7 +122,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, ParameterError
 from ..grid import OccupancyMap
 from ..transform import RigidTransform
-from ._rw_scoring import MapTables, build_tables, score, subsample_tables
+from ._rw_scoring import MapTables, build_tables, explained_cells, score, subsample_tables
 from .base import Candidate
 
 __all__ = [
@@ -332,8 +339,14 @@ class WalkOptions:
         Occupied and free cells of each map that take part in the walk's evaluations, at
         most, evenly spaced in row-major order (default 6000; >= 16).
     dedupe_cells : float
-        Walkers' results that move every corner of the moving map by less than this many
-        cells are one candidate (default 3).
+        Walkers' results that move every corner of the bounding box of the moving map's
+        occupied cells by less than this many cells are one candidate (default 8: the
+        recursion refines a candidate by a few cells anyway, so closer ones would crowd
+        out the other partitions' alignments).
+    explain_cells : float
+        An occupied moving cell is *explained* by a transform when it lands within this
+        Manhattan distance of an occupied reference cell (default 2, the masking's ``c``);
+        candidates are ranked by the cells they explain.
     time_budget : float, optional
         Wall-clock seconds per registration after which the walk stops and returns what it
         has (default none). Makes results machine-dependent: only the iteration budget is
@@ -362,7 +375,8 @@ class WalkOptions:
     lock_weight: float = 10.0
     c_lock: float | None = None
     max_points: int = 6000
-    dedupe_cells: float = 3.0
+    dedupe_cells: float = 8.0
+    explain_cells: float = 2.0
     time_budget: float | None = None
 
     def __post_init__(self) -> None:
@@ -387,6 +401,7 @@ class WalkOptions:
             _check_float("c_lock", self.c_lock, allow_zero=True)
         _check_int("max_points", self.max_points, minimum=16)
         _check_float("dedupe_cells", self.dedupe_cells, allow_zero=True)
+        _check_float("explain_cells", self.explain_cells, allow_zero=True)
         if self.time_budget is not None:
             _check_float("time_budget", self.time_budget)
 
@@ -622,6 +637,7 @@ def _spectral_hints(
 class _WalkResult:
     states: NDArray[np.float64]  # (W, 3) best (theta, ux, uy) per walker
     delta: NDArray[np.float64]  # (W,) on the sampled cells
+    most: NDArray[np.float64]  # (W, 3) the state that explained the most cells, per walker
     pivot: NDArray[np.float64]  # moving centroid the rotation turns about
     evaluations: int
     steps: int
@@ -659,7 +675,8 @@ def _walk(
     pivot = moving.centroid
 
     def evaluate(st: NDArray[np.float64]) -> Any:
-        return score(ref, moving, *_transform_arrays(st, pivot), lock)
+        arrays = _transform_arrays(st, pivot)
+        return score(ref, moving, *arrays, lock, explain_cells=opt.explain_cells)
 
     grid = _start_poses(opt, prepared, pivot, evaluate)
     starts = [grid] + ([np.array([_state_of(t, pivot) for t in hints])] if hints else [])
@@ -682,6 +699,8 @@ def _walk(
     best_state = state.copy()
     best = current.copy()
     best_acc = first.acceptance.copy()
+    most_state = state.copy()  # the state that explained the most cells so far
+    most = first.explained.copy()
     mark = current.copy()  # best Delta when the walker last made progress (stopping rule)
     evaluations = opt.rotations * (2 + opt.start_grid**2) + n_walkers  # starts, then walkers
     since = np.zeros(n_walkers, dtype=np.int64)
@@ -737,6 +756,9 @@ def _walk(
         best[idx[improved]] = value[improved]
         best_state[idx[improved]] = proposal[improved]
         best_acc[idx[improved]] = scored.acceptance[improved]
+        more = scored.explained > most[idx]
+        most[idx[more]] = scored.explained[more]
+        most_state[idx[more]] = proposal[more]
         mark[idx[progress]] = value[progress]
         since[idx] = np.where(progress, 0, since[idx] + 1)
 
@@ -772,6 +794,7 @@ def _walk(
     return _WalkResult(
         states=best_state,
         delta=best,
+        most=most_state,
         pivot=pivot,
         evaluations=evaluations,
         steps=steps,
@@ -842,6 +865,17 @@ def _adapt(
     return mean, chol
 
 
+def _corners(moving: MapTables) -> NDArray[np.float64]:
+    """Corners of the bounding box of the moving map's occupied cells (of all cells if none)."""
+    pts = moving.points[0] if moving.points[0].shape[1] else moving.points[1]
+    if not pts.shape[1]:  # pragma: no cover - candidates() rejects a map without known cells
+        rows, cols = moving.shape
+        return np.array([[0.0, 0.0], [cols - 1.0, rows - 1.0]])
+    x0, y0 = (float(v) for v in pts[:2].min(axis=1))
+    x1, y1 = (float(v) for v in pts[:2].max(axis=1))
+    return np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]])
+
+
 def _to_candidates(
     walk: _WalkResult,
     prepared: _PreparedReference,
@@ -849,24 +883,43 @@ def _to_candidates(
     opt: WalkOptions,
     max_candidates: int,
 ) -> list[Candidate]:
-    """Walkers' best poses ranked by Delta on every cell, near-duplicates dropped."""
-    rows, cols = moving_full.shape
-    corners = np.array([[0.0, 0.0], [cols - 1.0, 0.0], [0.0, rows - 1.0], [cols - 1.0, rows - 1.0]])
-    c, s, tx, ty = _transform_arrays(walk.states, walk.pivot)
+    """The walkers' optima that together explain the most, near-duplicates dropped.
+
+    Each walker offers its lowest-Delta state and the state that explained the most
+    occupied cells along its walk. They are ranked greedily: first the one that explains
+    the most occupied moving cells, then, each time, the one that explains the most cells
+    that those before it did not (ties by Delta on every cell). The remainder of a broken
+    map has one good alignment per partition; Delta, averaged over all of them, is not
+    always lowest at the one that explains the most, and near variants of the best
+    alignment explain little that it does not.
+    """
+    corners = _corners(moving_full)
+    states = np.concatenate([walk.states, walk.most])
+    c, s, tx, ty = _transform_arrays(states, walk.pivot)
     lock = _c_lock(opt.c_lock, opt.lock_weight, moving_full)
-    final = score(prepared.full, moving_full, c, s, tx, ty, lock)
-    order = np.lexsort((np.arange(final.delta.size), final.delta))
+    final = score(prepared.full, moving_full, c, s, tx, ty, lock, explain_cells=opt.explain_cells)
+    occupied = subsample_tables(moving_full, opt.max_points).points[0]
+    if occupied.shape[1]:
+        hits = explained_cells(prepared.full, occupied, c, s, tx, ty, opt.explain_cells)
+    else:  # free cells only: rank by Delta
+        hits = np.zeros((states.shape[0], 0), dtype=bool)
+    covered = np.zeros(hits.shape[1], dtype=bool)
+    free = np.ones(states.shape[0], dtype=bool)  # not yet taken or dropped
     kept: list[RigidTransform] = []
     out: list[Candidate] = []
-    for i in order:
+    while free.any() and len(out) < max_candidates:
+        gain = np.count_nonzero(hits & ~covered, axis=1)
+        pool = np.flatnonzero(free)
+        # most new cells, then lowest Delta, then walker order (deterministic)
+        i = int(pool[np.lexsort((pool, final.delta[pool], -gain[pool]))[0]])
+        free[i] = False
         t = RigidTransform(math.atan2(s[i], c[i]), tx[i], ty[i])
         if any(float(k.displacement(t, corners).max()) < opt.dedupe_cells for k in kept):
             continue
         kept.append(t)
+        covered |= hits[i]
         omega = float(np.clip(final.acceptance[i], 0.0, 1.0))
         out.append(Candidate(transform=t, confidence=omega, acceptance=omega))
-        if len(out) >= max_candidates:
-            break
     return out
 
 
