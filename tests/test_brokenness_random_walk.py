@@ -87,3 +87,22 @@ def test_compute_command_with_a_time_budget(depot, tmp_path, capsys):
     assert all(0.8 < p["acceptance"] <= 1.0 for p in record["partitions"])
     assert main([*args, "--time-budget", "-1"]) == 2
     assert "time-budget" in capsys.readouterr().err
+
+
+def test_progress_is_shown_only_on_a_terminal(monkeypatch):
+    import io
+
+    from brokenness.cli.compute import _walk_progress
+    from brokenness.registration.random_walk import WalkProgress
+
+    with _walk_progress(True) as progress:  # pytest's stderr is not a terminal
+        assert progress is None
+    fake = io.StringIO()
+    fake.isatty = lambda: True  # type: ignore[method-assign]
+    monkeypatch.setattr("sys.stderr", fake)
+    with _walk_progress(False) as progress:
+        assert progress is None
+    with _walk_progress(True) as progress:
+        assert callable(progress)
+        progress(WalkProgress(1, 10, 300, 12, 12, 3.5, 0.97, 120, 0.1, False))
+        progress(WalkProgress(1, 300, 300, 12, 0, 2.5, 0.98, 3600, 0.9, True))

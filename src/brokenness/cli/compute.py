@@ -89,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
             min_partition_fraction=args.min_partition_fraction,
             registration_options=options or None,
         )
+    # The progress display is not a parameter of the result (nor JSON): keep it out of the
+    # record, the JSON and the saved results.
+    (result.parameters.get("registration_options") or {}).pop("progress", None)
     if args.overlay:
         from ..report.overlay import render_overlay
 
@@ -156,9 +159,6 @@ def _walk_progress(wanted: bool) -> Iterator[Callable[[Any], None] | None]:
 
 def _json_record(result: BrokennessResult, args: argparse.Namespace) -> dict[str, Any]:
     record = result.to_dict()
-    # The progress display is not a parameter of the result (and not JSON).
-    reg_options = record.get("parameters", {}).get("registration_options") or {}
-    reg_options.pop("progress", None)
     record["map"] = str(args.map)
     record["reference"] = str(args.reference)
     return record
