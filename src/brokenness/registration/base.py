@@ -83,7 +83,11 @@ class Registration:
             "confidence": self.confidence,
             "seconds": self.seconds,
             "candidates": [
-                {"transform": c.transform.to_dict(), "confidence": c.confidence}
+                {
+                    "transform": c.transform.to_dict(),
+                    "confidence": c.confidence,
+                    "acceptance": c.acceptance,
+                }
                 for c in self.candidates
             ],
         }

@@ -577,8 +577,10 @@ class RandomWalkRegistrar:
         Returns
         -------
         list of Candidate
-            Distinct optima of the walk (each walker's best state), lowest Delta (on every
-            cell) first; ``confidence`` and ``acceptance`` are the acceptance indicator
+            Distinct states of the walk (each walker's lowest-Delta state and the one that
+            explained the most occupied cells), ranked greedily by the occupied cells they
+            explain that better-ranked ones do not, ties by Delta on every cell;
+            ``confidence`` and ``acceptance`` are the acceptance indicator
             ``agree / (agree + disagree)`` of the transform.
 
         Raises
