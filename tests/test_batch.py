@@ -87,7 +87,7 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
         if degree is not None:
             assert 0.5 < float(r["largest_fraction"]) <= 1.0
     md = (out / "summary.md").read_text().splitlines()
-    assert md[0] == "5 pairs: 4 done, 0 skipped (done before), 1 failed"
+    assert md[0] == "5 pairs: 4 done, 0 not measured, 0 skipped (done before), 1 failed"
     assert md[2].startswith("| id | status | map | reference | system | noise | degree |")
     assert len([ln for ln in md if ln.startswith("| ")]) == 6  # header + 5 rows
 
@@ -120,7 +120,7 @@ def test_pool_error_row_resume_and_summary(maps, tmp_path):
         assert load_results(zips[1]).degree in (0, 1)
     finally:
         mp.undo()
-    assert (out / "summary.md").read_text().startswith("5 pairs: 2 done, 2 skipped")
+    assert (out / "summary.md").read_text().startswith("5 pairs: 2 done, 0 not measured, 2 skipped")
 
 
 def test_yaml_manifest_and_options(maps, tmp_path):
@@ -210,7 +210,7 @@ def test_cli_batch_exit_codes(cli, maps, tmp_path, capsys):
     )
     stdout = capsys.readouterr().out
     assert code == 1  # ran to the end, one pair failed
-    assert "5 pairs: 4 evaluated, 0 already done, 1 failed" in stdout
+    assert "5 pairs: 4 evaluated, 0 not measured, 0 already done, 1 failed" in stdout
     assert "missing.yaml" in stdout and "summary.csv" in stdout
     assert len(list(out.glob("*.zip"))) == 4
 
@@ -218,7 +218,9 @@ def test_cli_batch_exit_codes(cli, maps, tmp_path, capsys):
     good.write_text(f"map,reference,system\n{maps / 'beta_0.2.yaml'},{maps / 'ref.yaml'},beta\n")
     code = cli(["batch", str(good), "--out", str(out), "--no-progress", "--threshold", "2"])
     assert code == 0
-    assert "1 pairs: 1 evaluated, 0 already done, 0 failed" in capsys.readouterr().out
+    assert (
+        "1 pairs: 1 evaluated, 0 not measured, 0 already done, 0 failed" in capsys.readouterr().out
+    )
     assert cli(["batch", str(good), "--out", str(out), "--no-progress"]) == 0
     assert "1 already done" in capsys.readouterr().out
 

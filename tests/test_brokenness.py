@@ -258,7 +258,7 @@ def test_broken_and_noisy_map_keeps_its_degree(maps, name):
 
 
 def test_nothing_found_is_said_not_hidden():
-    """Scattered dots against a room: no partition; degree 0 comes with a warning."""
+    """Scattered dots against a room: no partition, no degree (not measured), a warning."""
     from brokenness import NothingFoundWarning
 
     room = np.zeros((80, 80), bool)
@@ -268,5 +268,7 @@ def test_nothing_found_is_said_not_hidden():
     dots[np.random.default_rng(0).random((80, 80)) < 0.01] = True
     with pytest.warns(NothingFoundWarning):
         result = compute_brokenness(dots, room)
-    assert result.degree == 0 and result.partitions == ()
+    assert result.degree is None and result.partitions == ()
+    assert not result.measured and "not the same place" in result.reason
+    assert result.to_dict()["degree"] is None and result.to_dict()["measured"] is False
     assert result.unassigned_fraction == 1.0

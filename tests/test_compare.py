@@ -144,7 +144,7 @@ def test_csv_and_markdown_parse_back(batch_dir, tmp_path):
     assert md[1].startswith("|---|---|---:|")
     body = [[c.strip() for c in ln.strip("|").split("|")] for ln in md[2:]]
     assert len(body) == 5
-    assert body[1][:5] == ["alpha", "0.2", "1", "0", "1.000"]
+    assert body[1][:6] == ["alpha", "0.2", "1", "0", "0", "1.000"]
     with pytest.raises(ParameterError, match=r"\.csv or \.md"):
         write_table(table, tmp_path / "t.xlsx")
 
@@ -234,7 +234,7 @@ def test_cli_compare(cli, batch_dir, tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0
     assert "6 result(s), 1 failure(s)" in out and "alpha" in out and "beta" in out
-    assert table.read_text().startswith("| system | results | failed |")
+    assert table.read_text().startswith("| system | results | not_measured | failed |")
     assert Image.open(io.BytesIO(plot.read_bytes())).format == "PNG"
 
 

@@ -25,6 +25,7 @@ import logging
 import multiprocessing
 import os
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -43,7 +44,7 @@ from rich.progress import (
 )
 from rich.text import Text
 
-from ..errors import BrokennessError, ParameterError
+from ..errors import BrokennessError, NothingFoundWarning, ParameterError
 from ..report.results import ResultFileError, ResultRecord, atomic_write, load_results
 from .manifest import Manifest, Pair, pairs_of
 
@@ -60,6 +61,8 @@ STATUS_DONE = "done"
 STATUS_SKIPPED = "skipped"
 STATUS_ERROR = "error"
 STATUS_NOT_RUN = "not run"
+#: The pair was evaluated, but its degree was not measured (``BrokennessResult.measured``).
+STATUS_NOT_MEASURED = "not measured"
 
 
 @dataclass(frozen=True)
@@ -90,8 +93,9 @@ class RowResult:
     row : int
         Position in the manifest (1-based).
     status : str
-        ``"done"`` (evaluated now), ``"skipped"`` (result existed), ``"error"`` or
-        ``"not run"`` (interrupted).
+        ``"done"`` (evaluated now), ``"not measured"`` (evaluated, but the evidence does not
+        show that the map is of the reference's place: no degree), ``"skipped"`` (result
+        existed), ``"error"`` or ``"not run"`` (interrupted).
     map, reference : str
         Paths as written in the manifest.
     labels : dict
@@ -127,6 +131,8 @@ class RowResult:
         """A row from a result file of ``pair``."""
         s = record.stats
         timings = record.info.get("timings") or {}
+        if not record.measured and status == STATUS_DONE:
+            status = STATUS_NOT_MEASURED
         return cls(
             id=pair.id,
             row=pair.row,
@@ -135,7 +141,7 @@ class RowResult:
             reference=pair.reference_text,
             labels=dict(pair.labels),
             result=pair.result_name,
-            degree=int(s["degree"]),
+            degree=record.degree,
             n_partitions=len(s.get("partitions") or []),
             largest_fraction=s.get("largest_fraction"),
             unassigned_fraction=s.get("unassigned_fraction"),
@@ -219,7 +225,9 @@ def evaluate_pair(pair: Pair, out_dir: str | os.PathLike[str], options: PairOpti
         ref = load_map(pair.reference)
         loaded = time.perf_counter()
         kwargs = {**options.compute, **pair.compute_options()}
-        result = compute_brokenness(m, ref, **kwargs)
+        with warnings.catch_warnings():  # the row's status says it
+            warnings.simplefilter("ignore", NothingFoundWarning)
+            result = compute_brokenness(m, ref, **kwargs)
         info = {
             "labels": dict(pair.labels),
             "pair": {
@@ -453,11 +461,12 @@ def summary_markdown(rows: Sequence[RowResult]) -> str:
     def esc(text: str) -> str:
         return text.replace("|", "\\|").replace("\n", " ")
 
-    counts = {s: sum(1 for r in rows if r.status == s) for s in (STATUS_DONE, STATUS_SKIPPED)}
-    errors = sum(1 for r in rows if r.status == STATUS_ERROR)
+    statuses = (STATUS_DONE, STATUS_NOT_MEASURED, STATUS_SKIPPED, STATUS_ERROR)
+    counts = {s: sum(1 for r in rows if r.status == s) for s in statuses}
     lines = [
-        f"{len(rows)} pairs: {counts[STATUS_DONE]} done, {counts[STATUS_SKIPPED]} skipped "
-        f"(done before), {errors} failed",
+        f"{len(rows)} pairs: {counts[STATUS_DONE]} done, {counts[STATUS_NOT_MEASURED]} not "
+        f"measured, {counts[STATUS_SKIPPED]} skipped (done before), "
+        f"{counts[STATUS_ERROR]} failed",
         "",
         "| " + " | ".join(columns) + " |",
         "|" + "|".join("---" for _ in columns) + "|",
@@ -595,9 +604,13 @@ def run_batch(
 
         def done(row: RowResult) -> None:
             rows[row.id] = row
-            last = f"{Path(row.map).name}: " + (
-                f"degree {row.degree}" if row.error is None else "[red]error[/red]"
-            )
+            if row.error is not None:
+                outcome = "[red]error[/red]"
+            elif row.degree is None:
+                outcome = "not measured"
+            else:
+                outcome = f"degree {row.degree}"
+            last = f"{Path(row.map).name}: {outcome}"
             bar.update(task, advance=1, last=last)
 
         try:

@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.markup import escape
 
     from ..batch import read_manifest, run_batch
-    from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_SKIPPED
+    from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_NOT_MEASURED, STATUS_SKIPPED
 
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
     console = Console(stderr=True)
@@ -112,10 +112,12 @@ def run(args: argparse.Namespace) -> int:
         console=console,
     )
     done, skipped = summary.count(STATUS_DONE), summary.count(STATUS_SKIPPED)
+    not_measured = summary.count(STATUS_NOT_MEASURED)
     failed = [r for r in summary.rows if r.status == STATUS_ERROR]
     out = Console(file=sys.stdout, soft_wrap=True)
     out.print(
-        f"{len(summary.rows)} pairs: {done} evaluated, {skipped} already done, {len(failed)} failed"
+        f"{len(summary.rows)} pairs: {done} evaluated, {not_measured} not measured, "
+        f"{skipped} already done, {len(failed)} failed"
     )
     for row in failed[:10]:
         where = f"row {row.row} ({escape(row.map)})"

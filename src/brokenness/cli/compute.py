@@ -6,14 +6,17 @@ import argparse
 import json
 import math
 import sys
+import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ..errors import NothingFoundWarning
 from ..grid import OccupancyMap
 from ..measure import BrokennessResult, compute_brokenness
 from ..registration.methods import METHODS
+from .main import EXIT_NOT_MEASURED, EXIT_OK
 
 __all__ = ["add_parser", "run"]
 
@@ -27,6 +30,10 @@ def add_parser(subparsers: Any) -> None:
             "Split MAP into partitions that each agree with REFERENCE under their own rigid "
             "transform (Birk 2010, Algorithm 1) and report the degree of brokenness "
             "(partitions - 1). Maps: ROS map YAML, PGM, PNG (and other images), .npy."
+        ),
+        epilog=(
+            "exit status: 0 measured; 2 bad input or options; 3 not measured: no part of the "
+            "map agrees with the reference well enough (not the same place?), degree null"
         ),
     )
     p.add_argument("map", help="the map under test")
@@ -77,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     options: dict[str, Any] = {}
     if args.method == "random-walk" and budget is not None:
         options["time_budget"] = budget
-    with _walk_progress(args.method == "random-walk") as progress:
+    with _walk_progress(args.method == "random-walk") as progress, warnings.catch_warnings():
+        warnings.simplefilter("ignore", NothingFoundWarning)  # said once, below, as the reason
         if progress is not None:
             options["progress"] = progress
         result = compute_brokenness(
@@ -92,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
     # The progress display is not a parameter of the result (nor JSON): keep it out of the
     # record, the JSON and the saved results.
     (result.parameters.get("registration_options") or {}).pop("progress", None)
+    status = EXIT_OK if result.measured else EXIT_NOT_MEASURED
     if args.overlay:
         from ..report.overlay import render_overlay
 
@@ -113,11 +122,11 @@ def run(args: argparse.Namespace) -> int:
     if args.json == "-":
         json.dump(_json_record(result, args), sys.stdout, indent=2)
         sys.stdout.write("\n")
-        return 0
+        return status
     if args.json:
         _write_json(Path(args.json), _json_record(result, args))
     _print_summary(result, m, ref)
-    return 0
+    return status
 
 
 @contextmanager
@@ -175,6 +184,12 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
     from rich.table import Table
 
     console = Console()
+    if not result.measured:
+        console.print(
+            f"[bold]degree of brokenness: not measured[/bold] ({result.reason}; method "
+            f"{result.method}, {result.seconds:.3f} s)"
+        )
+        return
     console.print(
         f"[bold]degree of brokenness: {result.degree}[/bold]  "
         f"({len(result.partitions)} partition(s), method {result.method}, "
@@ -206,8 +221,3 @@ def _print_summary(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap)
         f"unassigned: {result.unassigned_cells} of {result.occupied_cells} occupied cells "
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
-    if not result.partitions:
-        console.print(
-            "[bold]no part of the map agrees with the reference under any transform found: "
-            "the degree was not measured[/bold] (registration failed, or not the same place?)"
-        )

@@ -2,7 +2,9 @@
 
 Each subcommand lives in its own module of :mod:`brokenness.cli` and exposes
 ``add_parser(subparsers)``, which registers it and sets ``func`` to a ``run(args) -> int``.
-Errors the user can fix (bad files, bad options) are reported on one line with exit code 2.
+Exit status: 0 success; 2 an error the user can fix (bad files, bad options), reported on one
+line; 3 the degree was not measured (the evidence does not show that the map is of the
+reference's place: :attr:`brokenness.BrokennessResult.measured`); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ SUBCOMMANDS: tuple[str, ...] = ("compute", "register", "simulate", "batch", "com
 
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
+#: ``compute``: the degree was not measured (the map may not be of the reference's place).
+EXIT_NOT_MEASURED = 3
 
 
 class _Parser(argparse.ArgumentParser):
@@ -36,6 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="brokenness",
         description="How structurally broken is an occupancy-grid map? (Birk, ICRA 2010)",
+        epilog=(
+            "exit status: 0 done; 2 bad input or options (one line on stderr); "
+            "3 not measured (the map may not be of the reference's place); 130 interrupted"
+        ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)

@@ -59,7 +59,14 @@ from .hypotheses import best_hypothesis
 from .partitions import Found, merge_target, reassign, with_fringe
 from .views import remainder_states
 
-__all__ = ["DENSE_SHARE", "SUPPORT_RADIUS", "SUPPORT_SHARE", "agreement_support", "recover"]
+__all__ = [
+    "DENSE_SHARE",
+    "SUPPORT_RADIUS",
+    "SUPPORT_SHARE",
+    "agreement_support",
+    "drop_incoherent",
+    "recover",
+]
 
 #: Half-width (cells) of the square window in which a cell's support is counted
 #: (0.6 m at 5 cm cells).
@@ -113,6 +120,37 @@ def agreement_support(
     everything = np.ones(points.shape[0], dtype=bool)
     around = _window_counts(rows, cols, everything, everything, shape, radius)
     return _support(found, points, index, threshold, shape, radius, around)
+
+
+def drop_incoherent(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    min_cells: int,
+) -> list[Found]:
+    """The partitions that are coherent regions of the map, cells reassigned.
+
+    A partition must hold at least ``min_cells`` cells with a support of at least
+    :data:`SUPPORT_SHARE` (:func:`agreement_support`): the test a partition found by the
+    recovery passes, applied to every partition. A set of scattered cells that one transform
+    happens to put on reference walls (common where walls are long and straight) has little
+    support; it is not a part of the map that is "off", and its cells go to the partitions
+    that align them best. The least coherent partition is dropped first, one at a time.
+    """
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    everything = np.ones(points.shape[0], dtype=bool)
+    around = _window_counts(rows, cols, everything, everything, shape, SUPPORT_RADIUS)
+    while len(found) > 1:
+        support = _support(found, points, index, threshold, shape, SUPPORT_RADIUS, around)
+        coherent = [int(np.count_nonzero(support[f.members] >= SUPPORT_SHARE)) for f in found]
+        worst = min(range(len(found)), key=lambda j: (coherent[j], j))
+        if coherent[worst] >= min_cells:
+            break
+        kept = [f for j, f in enumerate(found) if j != worst]
+        found = reassign(kept, points, index, threshold, min_cells) if len(kept) > 1 else kept
+    return found
 
 
 def _support(

@@ -105,6 +105,7 @@ from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
 from .choice import mostly_claimed, prefer_unexplained
+from .evidence import MAP_RATIO, contradiction
 from .hypotheses import best_hypothesis
 from .partitions import (
     Found,
@@ -115,7 +116,7 @@ from .partitions import (
     reassign,
     with_fringe,
 )
-from .recovery import recover
+from .recovery import drop_incoherent, recover
 from .result import BrokennessResult, Partition
 from .views import reference_states, remainder_states, walls_connected
 
@@ -131,6 +132,11 @@ _IFMI_THOROUGH_OPTIONS = {"rotation_peaks": 6, "peak_ratio": 0.05, "translation_
 #: The wider search is also tried, for R and R' each on its own, when its best hypothesis
 #: explains less than this share of the cells left.
 _THOROUGH_BELOW = 0.4
+#: Regions of the remainder are registered on their own (the tiles of these grids over its
+#: box) when no hypothesis of the whole remainder is significant and it still holds at least
+#: this share of the map's occupied cells (a heavily broken map, no part dominating it).
+REGIONS_FROM = 0.1
+REGION_GRIDS = (2, 3)
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -327,6 +333,8 @@ def compute_brokenness(
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, threshold, min_cells)
     found = consolidate(found, points, index, threshold, merge_threshold, min_cells)
+    found = drop_incoherent(found, points, index, threshold, working.shape, min_cells)
+    map_ratio, ratios = _judge(found, points, working, index, threshold)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
     )
@@ -351,9 +359,10 @@ def compute_brokenness(
             displacement=p.displacement,
             displacement_m=p.displacement_m,
             step_seconds=p.step_seconds,
-            acceptance=acceptance[i],
+            contradiction=ratios[p.index],
+            acceptance=acceptance[p.index],
         )
-        for i, p in enumerate(found_partitions)
+        for p in found_partitions
     )
     parameters = {
         "threshold": threshold,
@@ -367,15 +376,22 @@ def compute_brokenness(
         "registration_options": dict(registration_options or {}),
         "working_resolution": working.resolution,
     }
+    reason = None
     if not partitions:
-        warnings.warn(
-            "no part of the map agrees with the reference under any transform found (every "
-            "occupied cell is unassigned): the degree was not measured",
-            NothingFoundWarning,
-            stacklevel=2,
+        reason = (
+            "no part of the map agrees with the reference under any transform found "
+            "(registration failed, or not the same place?)"
         )
+    elif map_ratio is not None and map_ratio > MAP_RATIO:
+        reason = (
+            f"the map's free space crosses the reference's walls at {100 * map_ratio:.0f} % "
+            f"of the rate of a random placement (at most {100 * MAP_RATIO:.0f} % for a map "
+            "of the reference's place): not the same place?"
+        )
+    if reason is not None:
+        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=2)
     return BrokennessResult(
-        degree=max(len(partitions) - 1, 0),
+        degree=len(partitions) - 1 if reason is None else None,
         partitions=partitions,
         labels=labels,
         occupied_cells=n_occupied,
@@ -383,7 +399,58 @@ def compute_brokenness(
         method=method,
         parameters=parameters,
         seconds=time.perf_counter() - started,
+        measured=reason is None,
+        reason=reason,
+        contradiction=map_ratio,
     )
+
+
+def _region_candidates(
+    working: OccupancyMap,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    registrar: Registrar,
+    whole: Any,
+    min_cells: int,
+    limit: int,
+    uses_free: bool,
+    drop_isolated: bool,
+) -> list[Candidate]:
+    """Hypotheses from regions of the remainder: the tiles of 2 x 2 and 3 x 3 grids over its
+    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped)."""
+    r, c = rows[remaining], cols[remaining]
+    r0, r1, c0, c1 = int(r.min()), int(r.max()) + 1, int(c.min()), int(c.max()) + 1
+    out: list[Candidate] = []
+    for g in REGION_GRIDS:
+        row_edges = np.linspace(r0, r1, g + 1)
+        col_edges = np.linspace(c0, c1, g + 1)
+        tile_row = np.searchsorted(row_edges, rows, side="right") - 1
+        tile_col = np.searchsorted(col_edges, cols, side="right") - 1
+        for i in range(g):
+            for j in range(g):
+                cells = remaining & (tile_row == i) & (tile_col == j)
+                if np.count_nonzero(cells) < min_cells:
+                    continue
+                states = remainder_states(working, rows, cols, cells, uses_free, drop_isolated)
+                out += registrar.candidates(whole, states, limit)
+    return out
+
+
+def _judge(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    threshold: float,
+) -> tuple[float | None, list[float | None]]:
+    """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`): the whole
+    map's ratio (observed free-space contradiction over the chance rate), which says whether
+    the map is of the reference's place, and each partition's, largest first (as
+    :func:`assemble` sorts them)."""
+    evidence = contradiction(found, points, working, index, threshold)
+    order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
+    return evidence.ratio(), [evidence.ratio(i) for i in order]
 
 
 def _common_resolution(m: OccupancyMap, ref: OccupancyMap) -> tuple[OccupancyMap, RigidTransform]:
@@ -496,6 +563,31 @@ def _recurse(
                 best = prefer_unexplained(best_whole, best_rest, significance * spread)
             if best is not None and np.count_nonzero(best[1]) >= enough and rest_ok:
                 break
+        if (
+            thorough is not None
+            and (best is None or np.count_nonzero(best[1]) < needed)
+            and n >= max(4 * min_cells, REGIONS_FROM * n_total)
+        ):
+            # No part dominates what is left (a heavily broken map): its spectra have no
+            # peak of their own. Parts of the map do: register regions of it.
+            fresh += _region_candidates(
+                working,
+                rows,
+                cols,
+                remaining,
+                thorough,
+                whole,
+                min_cells,
+                max_candidates,
+                uses_free,
+                drop_isolated,
+            )
+            pool += fresh
+            regional = best_hypothesis(pool, left_points, index, threshold, refined)
+            if regional is not None and (
+                best is None or np.count_nonzero(regional[1]) > np.count_nonzero(best[1])
+            ):
+                best = regional
         carried, carried_rest = fresh + fresh_rest, fresh_rest
         if best is None or np.count_nonzero(best[1]) < needed:
             break

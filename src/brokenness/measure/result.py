@@ -47,6 +47,10 @@ class Partition:
         The same in metres, when the reference resolution is known.
     step_seconds : float
         Time of the recursion step that found it (registration + masking).
+    contradiction : float or None
+        How often the map's free space of this partition lands on reference walls under its
+        transform, over the rate of a random placement (0: never; 1: as often as chance;
+        ``None``: too little free space to tell). See :mod:`brokenness.measure.evidence`.
     acceptance : float or None
         Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` of the
         partition's cells under its transform (see
@@ -63,6 +67,7 @@ class Partition:
     displacement: float
     displacement_m: float | None
     step_seconds: float
+    contradiction: float | None = None
     acceptance: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
@@ -77,6 +82,7 @@ class Partition:
             "displacement_cells": self.displacement,
             "displacement_m": self.displacement_m,
             "step_seconds": self.step_seconds,
+            "contradiction": self.contradiction,
             "acceptance": self.acceptance,
         }
 
@@ -87,9 +93,9 @@ class BrokennessResult:
 
     Attributes
     ----------
-    degree : int
-        Number of partitions minus one (0 = not broken). 0 also when no partition at all
-        could be found (then ``partitions`` is empty and every cell is unassigned).
+    degree : int or None
+        Number of partitions minus one (0 = not broken); ``None`` when the degree was not
+        measured (see ``measured``).
     partitions : tuple of Partition
         Largest first.
     labels : ndarray of int16
@@ -106,9 +112,19 @@ class BrokennessResult:
         Every option that shaped the result (threshold, stopping rule...), for the record.
     seconds : float
         Total wall-clock time.
+    measured : bool
+        False when the evidence does not show that the map is of the reference's place (no
+        part of it agrees with the reference well enough to carry a partition): then
+        ``degree`` is ``None`` and ``reason`` says why. Never a silent 0.
+    reason : str or None
+        Why the degree was not measured (``None`` when it was).
+    contradiction : float or None
+        The whole map's free-space contradiction over the chance rate, over every partition
+        the recursion found (:mod:`brokenness.measure.evidence`); above
+        :data:`~brokenness.measure.evidence.MAP_RATIO` the map is not measured.
     """
 
-    degree: int
+    degree: int | None
     partitions: tuple[Partition, ...]
     labels: NDArray[np.int16] = field(repr=False)
     occupied_cells: int
@@ -116,6 +132,9 @@ class BrokennessResult:
     method: str
     parameters: dict[str, Any]
     seconds: float
+    measured: bool = True
+    reason: str | None = None
+    contradiction: float | None = None
 
     @property
     def unassigned_fraction(self) -> float:
@@ -135,7 +154,10 @@ class BrokennessResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (without the label image)."""
         return {
+            "measured": self.measured,
             "degree": self.degree,
+            "reason": self.reason,
+            "contradiction": self.contradiction,
             "occupied_cells": self.occupied_cells,
             "unassigned_cells": self.unassigned_cells,
             "unassigned_fraction": self.unassigned_fraction,

@@ -37,7 +37,10 @@ class ResultEntry:
     labels : dict of str to str
         The run's labels (system, dataset, noise...); empty for a single ``compute`` run.
     degree : int or None
-        Degree of brokenness; ``None`` for a failure.
+        Degree of brokenness; ``None`` for a failure or when it was not measured.
+    measured : bool
+        False for a result whose degree was not measured (the map may not be of the
+        reference's place) and for a failure.
     partition_fractions : tuple of float
         Share of the occupied cells of each partition, largest first.
     psi_map, psi_repaired : float or None
@@ -49,6 +52,7 @@ class ResultEntry:
     path: Path
     labels: dict[str, str] = field(default_factory=dict, hash=False)
     degree: int | None = None
+    measured: bool = False
     partition_fractions: tuple[float, ...] = ()
     psi_map: float | None = None
     psi_repaired: float | None = None
@@ -84,13 +88,14 @@ def _from_zip(path: Path) -> ResultEntry:
     parts = stats.get("partitions") or []
     try:
         fractions = tuple(float(p["fraction"]) for p in parts)
-        degree = int(stats["degree"])
-    except (KeyError, TypeError, ValueError):
+        degree = record.degree
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise ResultFileError(f"{path}: stats.json has no valid degree and partitions") from None
     return ResultEntry(
         path=path,
         labels=_labels(record.info.get("labels")),
         degree=degree,
+        measured=degree is not None,
         partition_fractions=fractions,
         psi_map=_float(stats.get("psi_map")),
         psi_repaired=_float(stats.get("psi_repaired")),

@@ -115,7 +115,7 @@ def plot_degree_vs(
     series_label : str, optional
         One line per value of this label (e.g. ``system``); one line for all otherwise.
     """
-    ok = [e for e in entries if not e.failed and _float(e.labels.get(x_label)) is not None]
+    ok = [e for e in entries if e.measured and _float(e.labels.get(x_label)) is not None]
     series = _series(ok, series_label)
     xs_all = sorted({_float(e.labels[x_label]) or 0.0 for e in ok})
     span = (xs_all[-1] - xs_all[0]) if len(xs_all) > 1 else 1.0

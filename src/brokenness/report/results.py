@@ -94,9 +94,14 @@ class ResultRecord:
     path: Path | None = None
 
     @property
-    def degree(self) -> int:
-        """Degree of brokenness."""
-        return int(self.stats["degree"])
+    def measured(self) -> bool:
+        """Whether the degree was measured (results written before this field: True)."""
+        return bool(self.stats.get("measured", True)) and self.stats.get("degree") is not None
+
+    @property
+    def degree(self) -> int | None:
+        """Degree of brokenness, ``None`` when it was not measured."""
+        return int(self.stats["degree"]) if self.measured else None
 
     @property
     def run_labels(self) -> dict[str, str]:

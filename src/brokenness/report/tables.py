@@ -36,6 +36,7 @@ __all__ = [
 #: Figure columns of a table, after the label columns.
 FIGURES: tuple[str, ...] = (
     "results",
+    "not_measured",
     "failed",
     "mean_degree",
     "median_degree",
@@ -47,6 +48,7 @@ FIGURES: tuple[str, ...] = (
 _FIRST_LABELS = ("system", "method", "dataset")
 _SHORT = {
     "results": "n",
+    "not_measured": "not measured",
     "failed": "failed",
     "mean_degree": "deg mean",
     "median_degree": "deg median",
@@ -66,7 +68,10 @@ class GroupRow:
     key : tuple of str or None
         The group's value of each grouping label (``None``: the label is not set).
     results : int
-        Results with a degree (failures not counted).
+        Results with a degree (failures and results not measured not counted): the figures
+        below are over these.
+    not_measured : int
+        Results whose degree was not measured (the map may not be of the reference's place).
     failed : int
         Failed pairs (batch error files).
     mean_degree, median_degree : float or None
@@ -78,6 +83,7 @@ class GroupRow:
 
     key: tuple[str | None, ...]
     results: int
+    not_measured: int
     failed: int
     mean_degree: float | None
     median_degree: float | None
@@ -117,7 +123,7 @@ def _mean(values: Sequence[float]) -> float | None:
 
 
 def _group_row(key: tuple[str | None, ...], members: Sequence[ResultEntry]) -> GroupRow:
-    ok = [e for e in members if not e.failed]
+    ok = [e for e in members if not e.failed and e.measured]
     degrees = [float(e.degree) for e in ok if e.degree is not None]
     largest = [e.largest_fraction for e in ok if e.largest_fraction is not None]
     psi_map = [e.psi_map for e in ok if e.psi_map is not None]
@@ -125,7 +131,8 @@ def _group_row(key: tuple[str | None, ...], members: Sequence[ResultEntry]) -> G
     return GroupRow(
         key=key,
         results=len(ok),
-        failed=len(members) - len(ok),
+        not_measured=sum(1 for e in members if not e.failed and not e.measured),
+        failed=sum(1 for e in members if e.failed),
         mean_degree=_mean(degrees),
         median_degree=float(np.median(degrees)) if degrees else None,
         mean_largest_fraction=_mean(largest),

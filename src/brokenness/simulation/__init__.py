@@ -5,6 +5,7 @@
 - :mod:`.mapper`: a vectorised log-odds occupancy-grid mapper for 2D laser scans;
 - :mod:`.bumps`: the paper's bump noise on the pose estimate (and an exact "k bumps" mode);
 - :mod:`.synthetic`: :func:`simulate_broken_map`, a broken map + reference + ground truth;
+- :mod:`.views`: a run mapped in its own frame, cropped; a building's plan as a reference;
 - :mod:`.output`: :func:`save_simulation`, maps (ROS YAML + PGM), ground-truth JSON, labels.
 """
 
@@ -16,6 +17,7 @@ from .laser import Laser, LaserRun, cast_rays, route_poses, simulate_run
 from .mapper import ScanCounts, counts_to_map, grid_geometry, map_scans, scan_counts
 from .output import save_simulation
 from .synthetic import SimulatedMap, SimulatedPartition, simulate_broken_map
+from .views import frame_truth, map_in_frame, plan_map
 
 __all__ = [
     "Building",
@@ -30,9 +32,12 @@ __all__ = [
     "counts_to_map",
     "draw_bumps",
     "draw_k_bumps",
+    "frame_truth",
     "generate_building",
     "grid_geometry",
+    "map_in_frame",
     "map_scans",
+    "plan_map",
     "route_poses",
     "save_simulation",
     "scan_counts",

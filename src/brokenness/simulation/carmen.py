@@ -73,6 +73,7 @@ __all__ = [
     "broken_log_map",
     "flaser_angles",
     "log_geometry",
+    "log_run",
     "map_log",
     "read_carmen",
     "wall_check",
@@ -691,6 +692,37 @@ def wall_check(
 
 
 # -- broken maps of a real building -------------------------------------------------------------
+def log_run(
+    log: CarmenLog, *, max_range: float | None = None, clear_no_returns: bool = False
+) -> tuple[LaserRun, tuple[float, float, float, float]]:
+    """A log as a :class:`~brokenness.simulation.laser.LaserRun`, and the box of what it saw.
+
+    The run's true and noisy poses are both the log's (corrected) poses; its ranges are the
+    log's with no returns set to 0 (ignored by the mapper) unless ``clear_no_returns``; its
+    laser has the log's beams and the mapping range (``max_range`` as in :func:`map_log`).
+    The box ``(x0, y0, x1, y1)`` (metres) holds the poses and the hits within the mapping
+    range. :func:`broken_log_map` breaks this run; give it to
+    :func:`~brokenness.simulation.synthetic.broken_map_from_run` to draw other bumps
+    without re-reading the log.
+    """
+    limit = _mapping_range(log, max_range)
+    ranges = log.ranges
+    if not clear_no_returns:
+        ranges = np.where(ranges >= log.hit_range, 0.0, ranges)
+    fov = float(np.degrees(log.angles[-1] - log.angles[0])) if log.n_beams > 1 else 1.0
+    laser = Laser(
+        beams=log.n_beams, fov_deg=min(max(fov, 1e-6), 360.0), max_range=limit, range_sigma=0.0
+    )
+    run = LaserRun(
+        true_poses=log.poses, noisy_poses=log.poses, ranges=ranges, angles=log.angles, laser=laser
+    )
+    # the box of everything the reference holds: poses and hits within the mapping range
+    near = log.ranges[log.hits] < limit
+    pts = np.concatenate([log.end_points()[near], log.poses[:, :2]])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return run, (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+
 def broken_log_map(
     log: CarmenLog,
     *,
@@ -787,21 +819,7 @@ def broken_log_map(
         raise ParameterError("max_attempts must be a positive integer")
     seed = int(seed)
     limit = _mapping_range(log, max_range)
-    ranges = log.ranges
-    if not clear_no_returns:
-        ranges = np.where(ranges >= log.hit_range, 0.0, ranges)
-    fov = float(np.degrees(log.angles[-1] - log.angles[0])) if log.n_beams > 1 else 1.0
-    laser = Laser(
-        beams=log.n_beams, fov_deg=min(max(fov, 1e-6), 360.0), max_range=limit, range_sigma=0.0
-    )
-    run = LaserRun(
-        true_poses=log.poses, noisy_poses=log.poses, ranges=ranges, angles=log.angles, laser=laser
-    )
-    # the box of everything the reference holds: poses and hits within the mapping range
-    near = log.ranges[log.hits] < limit
-    pts = np.concatenate([log.end_points()[near], log.poses[:, :2]])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    extent = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    run, extent = log_run(log, max_range=max_range, clear_no_returns=clear_no_returns)
     shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
     reference = counts_to_map(
         _counts(log, log.poses, resolution, shape, origin, limit, clear_no_returns)

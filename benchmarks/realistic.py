@@ -1,0 +1,623 @@
+"""A benchmark that looks like real use: broken maps as users have them, degrees 0-8.
+
+Cases come from the eight Radish CARMEN logs with corrected poses
+(``../shared/data/radish-corrected-carmen-logs/``; only the bundled Orebro log without it) and
+from simulated buildings (:mod:`brokenness.simulation`). A case is ``(source, degree, seed)``;
+everything else follows from it deterministically (``numpy.random.default_rng`` seeded with
+the source's CRC-32, the seed, the degree and the attempt number):
+
+1. **The run.** A log: its scans and corrected poses, 15 m mapping range (freiburg-079: every
+   4th of its 4791 scans). A simulated building: ``generate_building(3000 + seed)`` of
+   U[18, 30] x U[18, 30] m, explored by the default laser (181 beams, 270 degrees, 8 m), a
+   scan every 0.4 m, with small pose noise.
+2. **Resolutions.** Map and reference at 0.05 m in two thirds of the cases; in the others
+   one at 0.05 m and the other at 0.1 m (both ways, alternating).
+3. **The reference.** The run mapped with its true poses (the box of what it saw plus
+   0.5 m), or, for a third of the simulated cases, the building's plan
+   (:func:`brokenness.simulation.plan_map`: every wall and clutter object, seen or not).
+4. **Bumps** after the paper's model: ``degree`` bumps spread over the run (jittered),
+   ``theta ~ U[0, 2 pi)``, ``d ~ U[0, 1 m]`` in a uniform direction; each bump is a pure
+   shift (``theta = 0``) with probability 1/4. The draw is kept only if every partition
+   counts by the simulator's honest rule (:mod:`brokenness.simulation.synthetic`) with a
+   5 % minimum share, every partition's cells move by at least 0.5 m on average between
+   its transform and every other partition's (clearly off), and, in the final map, every
+   partition still holds at least 5 % of the occupied cells; otherwise the case is redrawn
+   (attempt 1, 2, ... up to 40).
+5. **The map in its own frame**: the bumped run drawn in a frame turned by U[0, 2 pi) and
+   shifted by U[-30, 30] m per axis (the SLAM run started anywhere;
+   :func:`brokenness.simulation.map_in_frame`), on a grid cropped to what it saw, three-state
+   (free by ray casting, unknown elsewhere).
+6. **Files.** Map and reference are written as ROS YAML + PGM into
+   ``benchmarks/results/realistic/<case>/`` with ``truth.json`` (expected degree, bumps,
+   frame, each partition's transform *map cell -> reference cell of the files as loaded*,
+   i.e. with the own-frame turn and the resolution change, as a 3x3 matrix and in the
+   ``RigidTransform.to_dict`` form) and ``labels.npy`` (the partition of each occupied map
+   cell, -1 elsewhere). Cases are generated once and reused (regenerated when missing or of
+   another generator version).
+
+Each case then runs through the public API as a user would:
+``compute_brokenness(load_map(map.yaml), load_map(reference.yaml))``. Per case: the degree
+(or not measured), **exact** (degree = expected), **all partitions true** (as many
+partitions as true parts, and a one-to-one matching in which every true part's cells are put,
+median, within 3 reference cells of where its true transform puts them by the matched
+partition's transform), and the compute time. Tables per degree for real logs and simulated
+buildings; per-case rows in ``benchmarks/results/realistic.json`` (``--tables-from`` redoes
+the tables from such a file).
+
+Run: ``python benchmarks/realistic.py --quick --workers 1`` (25 cases: Orebro, Intel and
+Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full set
+``python benchmarks/realistic.py --workers 2`` (8 logs x 9 degrees + 54 simulated cases);
+``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree),
+``--logs intel,aces``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import warnings
+import zlib
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, replace
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from cases import LOG_RANGE, LOGS, ROOT, TESTS_DATA  # noqa: E402
+
+from brokenness import (  # noqa: E402
+    OccupancyMap,
+    RigidTransform,
+    compute_brokenness,
+    load_map,
+    save_map,
+)
+from brokenness.masking import ReferenceIndex, cell_points  # noqa: E402
+from brokenness.simulation import (  # noqa: E402
+    Building,
+    LaserRun,
+    counts_to_map,
+    draw_k_bumps,
+    frame_truth,
+    generate_building,
+    grid_geometry,
+    map_in_frame,
+    plan_map,
+    scan_counts,
+    simulate_run,
+)
+from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
+from brokenness.simulation.synthetic import broken_map_from_run  # noqa: E402
+
+RESULTS = ROOT / "benchmarks" / "results"
+CACHE = RESULTS / "realistic"
+#: Bumped into the cache: cases made by another version are regenerated.
+GENERATOR_VERSION = 1
+
+LOG_NAMES = (
+    "aces",
+    "csail",
+    "fhw",
+    "freiburg-079",
+    "freiburg-101",
+    "intel",
+    "orebro",
+    "seattle",
+)
+SIM = "sim"
+DEGREES = tuple(range(9))
+SIM_PER_SEED = 6
+QUICK_LOGS = ("orebro", "intel", "freiburg-101")
+QUICK_DEGREES = (0, 2, 4, 6, 8)
+QUICK_SIM_SEEDS = (0, 1)
+
+FINE, COARSE = 0.05, 0.1
+MIN_SHARE = 0.05  # every partition at least 5 % of the occupied cells
+MIN_OFF_M = 0.5  # mean displacement between any two partitions' transforms, metres
+BUMP_RADIUS = 1.0  # d ~ U[0, r], metres
+PURE_SHIFT = 0.25  # chance that a bump is a pure shift
+FRAME_SHIFT = 30.0  # own frame: shift ~ U[-30, 30] m per axis
+MAX_ATTEMPTS = 40
+TRUE_CELLS = 3.0  # "all partitions true": median displacement within 3 reference cells
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark case; everything follows from ``(source, degree, seed)``.
+
+    Attributes
+    ----------
+    source : str
+        A Radish log name (``"intel"``...) or ``"sim"``.
+    degree, seed : int
+    map_resolution, reference_resolution : float
+    reference : {"run", "plan"}
+        The true-pose run mapped, or the simulated building's plan.
+    """
+
+    source: str
+    degree: int
+    seed: int
+    map_resolution: float
+    reference_resolution: float
+    reference: str
+
+    @property
+    def name(self) -> str:
+        """Folder name of the case."""
+        return f"{self.source}_d{self.degree}_s{self.seed}"
+
+    @property
+    def kind(self) -> str:
+        """``"real log"`` or ``"simulated"``."""
+        return "simulated" if self.source == SIM else "real log"
+
+
+def _crc(text: str) -> int:
+    return zlib.crc32(text.encode("utf-8"))
+
+
+def make_case(source: str, degree: int, seed: int) -> Case:
+    """The case of ``(source, degree, seed)``: resolutions and reference kind, deterministic.
+
+    A third of the cases get different resolutions (map 0.1 m / reference 0.05 m and the
+    reverse, alternating); a third of the simulated ones the plan as reference.
+    """
+    k = (_crc(source) + 7 * seed + degree) % 6
+    res = {0: (COARSE, FINE), 1: (FINE, COARSE)}.get(k, (FINE, FINE))
+    ref = "plan" if source == SIM and seed % 3 == 1 else "run"
+    return Case(source, degree, seed, res[0], res[1], ref)
+
+
+def case_list(
+    *,
+    quick: bool = False,
+    degrees: tuple[int, ...] | None = None,
+    seeds: int = 1,
+    logs: tuple[str, ...] | None = None,
+) -> list[Case]:
+    """The cases: ``seeds`` per available log and ``6 seeds`` simulated, for each degree.
+
+    ``quick``: Orebro, Intel and Freiburg-101 (those available) and simulated seeds 0 and 1,
+    at degrees 0, 2, 4, 6, 8 (unless ``degrees`` says otherwise).
+    """
+    available = [n for n in LOG_NAMES if _log_path(n) is not None]
+    if quick:
+        names = [n for n in (logs or QUICK_LOGS) if n in available]
+        degs = degrees or QUICK_DEGREES
+        sim_seeds: tuple[int, ...] = QUICK_SIM_SEEDS
+        log_seeds: tuple[int, ...] = (0,)
+    else:
+        names = [n for n in (logs or LOG_NAMES) if n in available]
+        degs = degrees or DEGREES
+        sim_seeds = tuple(range(SIM_PER_SEED * seeds))
+        log_seeds = tuple(range(seeds))
+    out = [make_case(n, d, s) for n in names for d in degs for s in log_seeds]
+    if logs is None or SIM in logs:
+        out += [make_case(SIM, d, s) for d in degs for s in sim_seeds]
+    return out
+
+
+# -- generation -----------------------------------------------------------------------------
+def _log_path(name: str) -> Path | None:
+    for p in (
+        LOGS / f"{name}-corrected.log.gz",
+        TESTS_DATA / "carmen" / f"{name}-corrected.log.gz",
+    ):
+        if p.is_file():
+            return p
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    run: LaserRun
+    extent: tuple[float, float, float, float]
+    building: Building | None
+
+
+@lru_cache(maxsize=4)
+def _prepare(source: str, seed: int) -> _Prepared:
+    """The run of a log (seed ignored) or of simulated building ``seed``."""
+    if source == SIM:
+        rng = np.random.default_rng([3000 + seed, 77])
+        width, height = (float(v) for v in rng.uniform(18.0, 30.0, 2))
+        building = generate_building(
+            3000 + seed, width=width, height=height, truth_resolution=0.025
+        )
+        run = simulate_run(building, rng=np.random.default_rng([3000 + seed, 1]))
+        return _Prepared(run, (0.0, 0.0, building.width, building.height), building)
+    from brokenness.simulation.carmen import log_run, read_carmen
+
+    path = _log_path(source)
+    if path is None:
+        raise FileNotFoundError(f"no log {source}")
+    log = read_carmen(path)
+    if log.n_scans > 2000:  # freiburg-079: every 4th scan keeps the generation time sane
+        log = log.select(np.arange(0, log.n_scans, 4))
+    run, extent = log_run(log, max_range=LOG_RANGE)
+    return _Prepared(run, extent, None)
+
+
+@lru_cache(maxsize=4)
+def _true_reference(source: str, seed: int, resolution: float) -> tuple[OccupancyMap, Any]:
+    prep = _prepare(source, seed)
+    x0, y0, x1, y1 = prep.extent
+    shape, origin = grid_geometry([[x0, y0], [x1, y1]], resolution, margin=0.5)
+    run = prep.run
+    ref = counts_to_map(
+        scan_counts(
+            run.true_poses,
+            run.ranges,
+            run.angles,
+            max_range=run.laser.max_range,
+            resolution=resolution,
+            shape=shape,
+            origin=origin,
+        )
+    )
+    return ref, ReferenceIndex.build(ref)
+
+
+def _bumps(case: Case, n_scans: int, attempt: int) -> list[Any]:
+    rng = np.random.default_rng([_crc(case.source), case.seed, case.degree, attempt])
+    bumps = draw_k_bumps(n_scans, case.degree, radius=BUMP_RADIUS, max_rotation=math.pi, rng=rng)
+    shift = rng.random(len(bumps)) < PURE_SHIFT
+    return [replace(b, theta=0.0) if s else b for b, s in zip(bumps, shift, strict=True)]
+
+
+def _clearly_off(
+    transforms: list[RigidTransform], labels: NDArray[np.int16], resolution: float
+) -> float:
+    """Smallest mean displacement (metres) of a partition's cells between two transforms."""
+    worst = math.inf
+    for j, tj in enumerate(transforms):
+        pts = cell_points(labels == j)
+        for i, ti in enumerate(transforms):
+            if i != j and len(pts):
+                worst = min(worst, float(ti.displacement(tj, pts).mean()) * resolution)
+    return worst
+
+
+@dataclass(frozen=True, eq=False)
+class Drawn:
+    """A case drawn in memory (before its files are written).
+
+    Attributes
+    ----------
+    case : Case
+    map, reference : OccupancyMap
+    labels : ndarray of int16
+        The true partition of each occupied map cell, -1 elsewhere.
+    errors : list of ndarray
+        World error ``E_j`` (3x3) of each partition.
+    frame : ndarray
+        The own frame (3x3 world matrix) the map is drawn in.
+    info : dict
+        JSON-ready: attempt, rejected draws, frame, bumps, shares.
+    """
+
+    case: Case
+    map: OccupancyMap
+    reference: OccupancyMap
+    labels: NDArray[np.int16]
+    errors: list[NDArray[np.float64]]
+    frame: NDArray[np.float64]
+    info: dict[str, Any]
+
+    def truths(
+        self, map_: OccupancyMap | None = None, reference: OccupancyMap | None = None
+    ) -> list[RigidTransform]:
+        """Each partition's true transform, map cell -> reference cell (of these maps)."""
+        m = self.map if map_ is None else map_
+        r = self.reference if reference is None else reference
+        return [frame_truth(m, r, e, self.frame) for e in self.errors]
+
+
+def draw_case(case: Case) -> Drawn | None:
+    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted."""
+    prep = _prepare(case.source, case.seed)
+    ref_run, index = _true_reference(case.source, case.seed, case.reference_resolution)
+    run = prep.run
+    n_scans = len(run.true_poses)
+    why: list[str] = []
+    for attempt in range(MAX_ATTEMPTS):
+        bumps = _bumps(case, n_scans, attempt)
+        broken, expected, parts, labels0, judged, bp = broken_map_from_run(
+            run,
+            ref_run,
+            bumps,
+            extent=prep.extent,
+            index=index,
+            min_partition_fraction=MIN_SHARE,
+        )
+        if expected != case.degree:
+            why.append(f"{attempt}: honest degree {expected}")
+            continue
+        off = _clearly_off([p.transform for p in parts], labels0, case.reference_resolution)
+        if case.degree and off < MIN_OFF_M:
+            why.append(f"{attempt}: two partitions only {off:.2f} m apart")
+            continue
+        rng = np.random.default_rng([_crc(case.source), case.seed, case.degree, attempt, 5])
+        phi = float(rng.uniform(0.0, 2.0 * math.pi))
+        tx, ty = (float(v) for v in rng.uniform(-FRAME_SHIFT, FRAME_SHIFT, 2))
+        frame = rigid_matrix(phi, tx, ty)
+        m, labels = map_in_frame(
+            bp.poses,
+            run.ranges,
+            run.angles,
+            max_range=run.laser.max_range,
+            resolution=case.map_resolution,
+            frame=frame,
+            segment=bp.segment,
+        )
+        counts = np.bincount(labels[labels >= 0], minlength=case.degree + 1)
+        shares = counts / max(int(counts.sum()), 1)
+        if shares.min() < MIN_SHARE:
+            why.append(f"{attempt}: a partition holds {100 * shares.min():.1f} % in the map")
+            continue
+        reference = ref_run
+        if case.reference == "plan":
+            assert prep.building is not None
+            reference = plan_map(prep.building, case.reference_resolution)
+        info = {
+            "attempt": attempt,
+            "rejected": why,
+            "frame": {"rotation_deg": math.degrees(phi), "translation_m": [tx, ty]},
+            "bumps": [b.to_dict() for b in judged],
+            "occupied_cells": int(counts.sum()),
+            "cells": counts.tolist(),
+            "shares": shares.tolist(),
+        }
+        return Drawn(case, m, reference, labels, list(bp.errors), frame, info)
+    return None
+
+
+def generate(case: Case, cache: Path = CACHE) -> Path | None:
+    """Write the files of ``case`` (when missing); its folder, or None if no draw fitted."""
+    folder = cache / case.name
+    truth_path = folder / "truth.json"
+    if truth_path.is_file():
+        old = json.loads(truth_path.read_text())
+        if old.get("generator_version") == GENERATOR_VERSION and old.get("case") == asdict(case):
+            return folder if old.get("ok", True) else None
+    drawn = draw_case(case)
+    folder.mkdir(parents=True, exist_ok=True)
+    if drawn is None:
+        truth_path.write_text(
+            json.dumps(
+                {"generator_version": GENERATOR_VERSION, "case": asdict(case), "ok": False},
+                indent=1,
+            )
+        )
+        return None
+    m, reference, info = drawn.map, drawn.reference, drawn.info
+    save_map(m, folder / "map.yaml")
+    save_map(reference, folder / "reference.yaml")
+    loaded_map, loaded_ref = load_map(folder / "map.yaml"), load_map(folder / "reference.yaml")
+    truths = drawn.truths(loaded_map, loaded_ref)
+    np.save(folder / "labels.npy", drawn.labels, allow_pickle=False)
+    truth = {
+        "generator_version": GENERATOR_VERSION,
+        "case": asdict(case),
+        "ok": True,
+        "expected_degree": case.degree,
+        "attempt": info["attempt"],
+        "rejected": info["rejected"],
+        "frame": info["frame"],
+        "bumps": info["bumps"],
+        "map": {"shape": list(m.shape), "resolution": m.resolution, "origin": list(m.origin)},
+        "reference": {
+            "kind": case.reference,
+            "shape": list(reference.shape),
+            "resolution": reference.resolution,
+            "origin": list(reference.origin or ()),
+        },
+        "occupied_cells": info["occupied_cells"],
+        "partitions": [
+            {
+                "index": j,
+                "cells": info["cells"][j],
+                "share": info["shares"][j],
+                "transform": t.to_dict(),
+                "matrix": t.matrix.tolist(),
+            }
+            for j, t in enumerate(truths)
+        ],
+    }
+    truth_path.write_text(json.dumps(truth, indent=1, allow_nan=False) + "\n")
+    return folder
+
+
+def _generate_job(case: Case) -> tuple[Case, str | None, float]:
+    warnings.simplefilter("ignore")
+    t0 = time.perf_counter()
+    folder = generate(case)
+    return case, None if folder is None else str(folder), time.perf_counter() - t0
+
+
+# -- evaluation -----------------------------------------------------------------------------
+def all_partitions_true(
+    found: list[RigidTransform],
+    truths: list[RigidTransform],
+    labels: NDArray[np.int16],
+    tolerance: float = TRUE_CELLS,
+) -> bool:
+    """As many found partitions as true parts, matched one to one within ``tolerance``.
+
+    Found partition ``p`` fits true part ``q`` when it puts ``q``'s cells (median) within
+    ``tolerance`` reference cells of where ``q``'s true transform puts them.
+    """
+    if len(found) != len(truths):
+        return False
+    fits = np.zeros((len(found), len(truths)), dtype=bool)
+    for q, tq in enumerate(truths):
+        pts = cell_points(labels == q)
+        for p, tp in enumerate(found):
+            fits[p, q] = float(np.median(tp.displacement(tq, pts))) <= tolerance
+    rows, cols = linear_sum_assignment(~fits)
+    return bool(fits[rows, cols].all())
+
+
+def evaluate(folder: Path) -> dict[str, Any]:
+    """Compute one case through the public API; its row."""
+    warnings.simplefilter("ignore")
+    truth = json.loads((folder / "truth.json").read_text())
+    labels = np.load(folder / "labels.npy")
+    truths = [RigidTransform.from_matrix(p["matrix"]) for p in truth["partitions"]]
+    m, r = load_map(folder / "map.yaml"), load_map(folder / "reference.yaml")
+    case = truth["case"]
+    row: dict[str, Any] = {
+        "case": folder.name,
+        **case,
+        "kind": "simulated" if case["source"] == SIM else "real log",
+        "expected_degree": truth["expected_degree"],
+        "map_cells": list(m.shape),
+        "reference_cells": list(r.shape),
+        "occupied_cells": truth["occupied_cells"],
+        "smallest_share": min(p["share"] for p in truth["partitions"]),
+    }
+    t0 = time.perf_counter()
+    try:
+        res = compute_brokenness(m, r)
+    except Exception as exc:
+        row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
+        return row
+    seconds = time.perf_counter() - t0
+    found = [p.transform for p in res.partitions]
+    row.update(
+        seconds=seconds,
+        measured=bool(res.measured),
+        degree=res.degree,
+        reason=res.reason,
+        exact=res.degree == truth["expected_degree"],
+        all_true=bool(res.measured) and all_partitions_true(found, truths, labels),
+        unassigned_share=float(res.unassigned_fraction),
+        partitions=[p.transform.to_dict() | {"cells": p.cells} for p in res.partitions],
+    )
+    return row
+
+
+def _evaluate_job(folder: str) -> dict[str, Any]:
+    return evaluate(Path(folder))
+
+
+def tables(rows: list[dict[str, Any]]) -> str:
+    """Per source kind and degree: cases, exact, all true, not measured, median seconds."""
+    out = []
+    for kind in ("real log", "simulated"):
+        mine = [r for r in rows if r["kind"] == kind and "measured" in r]
+        if not mine:
+            continue
+        out += [
+            f"\n{kind}:\n",
+            "| degree | cases | exact | all partitions true | not measured | median s |",
+            "|---|---|---|---|---|---|",
+        ]
+        degs = sorted({r["expected_degree"] for r in mine})
+        for d in degs + ["all"]:
+            sel = [r for r in mine if d == "all" or r["expected_degree"] == d]
+            n = len(sel)
+            out.append(
+                f"| {d} | {n} | {sum(r['exact'] for r in sel)} "
+                f"| {sum(r['all_true'] for r in sel)} "
+                f"| {sum(not r['measured'] for r in sel)} "
+                f"| {np.median([r['seconds'] for r in sel]):.2f} |"
+            )
+    done = [r for r in rows if "measured" in r]
+    if done:
+        out += [
+            "\nper source (all degrees) and per case kind:\n",
+            "| source | cases | exact | all partitions true | not measured | median s |",
+            "|---|---|---|---|---|---|",
+        ]
+        groups: dict[str, list[dict[str, Any]]] = {}
+        for r in done:
+            groups.setdefault(r["source"], []).append(r)
+        for r in done:
+            if r["map_resolution"] != r["reference_resolution"]:
+                groups.setdefault("(map and reference resolutions differ)", []).append(r)
+            if r["reference"] == "plan":
+                groups.setdefault("(plan as reference)", []).append(r)
+        for name, sel in groups.items():
+            out.append(
+                f"| {name} | {len(sel)} | {sum(r['exact'] for r in sel)} "
+                f"| {sum(r['all_true'] for r in sel)} "
+                f"| {sum(not r['measured'] for r in sel)} "
+                f"| {np.median([r['seconds'] for r in sel]):.2f} |"
+            )
+    errors = [r for r in rows if "error" in r]
+    if errors:
+        out.append(
+            f"\nerrors: {len(errors)}: " + "; ".join(f"{r['case']}: {r['error']}" for r in errors)
+        )
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="25 cases, a few minutes on 1 worker")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--degrees", type=str, default=None, help="e.g. 0,3,8")
+    ap.add_argument("--seeds", type=int, default=1, help="seeds per log (6x simulated)")
+    ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
+    ap.add_argument("--out", type=Path, default=RESULTS / "realistic.json")
+    ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
+    args = ap.parse_args(argv)
+    if args.tables_from is not None:
+        print(tables(json.loads(args.tables_from.read_text())["rows"]))
+        return 0
+    warnings.simplefilter("ignore")
+    degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
+    logs = tuple(args.logs.split(",")) if args.logs else None
+    cases = case_list(quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs)
+    start = time.perf_counter()
+    workers = max(1, args.workers)
+    # phase 1: generate what is missing (cases of one source run in one process, in order)
+    with ProcessPoolExecutor(workers) as pool:
+        made = list(pool.map(_generate_job, cases, chunksize=max(1, len(cases) // (4 * workers))))
+    gen_seconds = time.perf_counter() - start
+    failed = [c.name for c, f, _ in made if f is None]
+    folders = [f for _, f, _ in made if f is not None]
+    print(
+        f"{len(cases)} cases ({len(failed)} could not be drawn: {', '.join(failed) or '-'}); "
+        f"generation {gen_seconds:.0f} s (cache {CACHE.relative_to(ROOT)})",
+        flush=True,
+    )
+    # phase 2: compute (nothing else running in the pool)
+    t1 = time.perf_counter()
+    with ProcessPoolExecutor(workers) as pool:
+        rows = list(pool.map(_evaluate_job, folders))
+    compute_wall = time.perf_counter() - t1
+    print(tables(rows))
+    summary = {
+        "cases": len(cases),
+        "not_drawn": failed,
+        "generation_seconds": gen_seconds,
+        "compute_wall_seconds": compute_wall,
+        "workers": workers,
+        "quick": args.quick,
+    }
+    print(
+        f"\ncompute: {compute_wall:.0f} s wall on {workers} worker(s), "
+        f"{sum(r.get('seconds', 0.0) for r in rows):.0f} s summed"
+    )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(
+        json.dumps({"summary": summary, "rows": rows}, indent=1, allow_nan=False) + "\n"
+    )
+    print(f"results: {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
