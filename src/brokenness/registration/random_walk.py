@@ -59,8 +59,8 @@ numerical settings of the original implementation were not available to us.
   moving map's centroid (the reference's centroid, its own position, a ``start_grid`` = 6
   by 6 lattice over the reference's known cells); plus ``spectral_starts`` = 6 start poses
   from the spectral registration (iFMI hypotheses of the same remainder), which point at
-  the partitions' own alignments. Every walker's best state is a candidate: several
-  distinct optima (``dedupe_cells`` = 8: results that move every corner of the box of the
+  the partitions' own alignments. The walkers' states are the candidates: several
+  distinct ones (``dedupe_cells`` = 8: results that move every corner of the box of the
   moving map's occupied cells by less are one) are returned, and the recursion keeps the
   one under which most cells agree. Each walker offers two states: its lowest Delta and
   the one that *explained* the most occupied cells on its way (within ``explain_cells``
@@ -84,10 +84,13 @@ Repeatability: ``seed`` (default :data:`DEFAULT_SEED`) seeds a fresh
 call; no global random state is used, so the same input gives the same output bit for bit,
 alone, in a batch, in any order (unless a ``time_budget`` cuts a walk short).
 
-Known limitation (of the method, not the implementation): when the moving map holds several
-partitions, ``Psi`` averages over all of them, so the minimum of Delta can sit a fraction of
-a degree away from the best transform of the largest partition; the recursion refines the
-chosen candidate on the cells anyway.
+Known limitations (of the method, not the implementation): when the moving map holds
+several partitions, ``Psi`` averages over all of them, so the minimum of Delta can sit a
+fraction of a degree away from the best transform of the largest partition (the recursion
+refines the chosen candidate on the cells anyway), or at a wrong placement of a part (hence
+the ranking by explained cells). A small part whose angle neither the coarse grid's best
+start positions nor the spectral hypotheses come near can be missed: on the fifth map of
+the paper-style Table I, ``walkers_per_angle=2`` finds a part that the default misses.
 
 Cost of one evaluation: the distance maps of the reference are computed once by
 :meth:`RandomWalkRegistrar.prepare_reference`, those of the moving map once per
