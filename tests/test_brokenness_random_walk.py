@@ -5,6 +5,7 @@ The random walk costs seconds per step, so these use the depot map at 0.1 m (154
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,9 @@ def test_random_walk_finds_the_degree_and_transforms(depot, degree):
         found.append(int(np.argmin(errors)))
         assert min(errors) < 1.5
     assert sorted(found) == list(range(degree + 1))
+    # Birk & Carpin's acceptance indicator, per partition (cells of the same state / known)
+    assert all(p.acceptance is not None and 0.8 < p.acceptance <= 1.0 for p in result.partitions)
+    assert all(p.to_dict()["acceptance"] == p.acceptance for p in result.partitions)
 
 
 def test_random_walk_same_seed_same_answer(depot):
@@ -60,3 +64,45 @@ def test_random_walk_same_seed_same_answer(depot):
     b = compute_brokenness(broken, depot, method="random-walk", seed=7, **options)
     assert np.array_equal(a.labels, b.labels)
     assert [p.transform for p in a.partitions] == [p.transform for p in b.partitions]
+
+
+def test_ifmi_partitions_leave_the_acceptance_unset(depot):
+    broken, _ = _case(depot, 1)
+    result = compute_brokenness(broken, depot)
+    assert result.partitions and all(p.acceptance is None for p in result.partitions)
+
+
+def test_compute_command_with_a_time_budget(depot, tmp_path, capsys):
+    from brokenness.cli.main import main
+
+    broken, _ = _case(depot, 1)
+    np.save(tmp_path / "map.npy", broken.states if hasattr(broken, "states") else broken)
+    np.save(tmp_path / "ref.npy", depot.states)
+    args = ["compute", str(tmp_path / "map.npy"), str(tmp_path / "ref.npy")]
+    args += ["--method", "random-walk", "--seed", "3", "--json", "-"]
+    assert main([*args, "--time-budget", "60"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["degree"] == 1
+    assert record["parameters"]["registration_options"] == {"time_budget": 60.0}
+    assert all(0.8 < p["acceptance"] <= 1.0 for p in record["partitions"])
+    assert main([*args, "--time-budget", "-1"]) == 2
+    assert "time-budget" in capsys.readouterr().err
+
+
+def test_progress_is_shown_only_on_a_terminal(monkeypatch):
+    import io
+
+    from brokenness.cli.compute import _walk_progress
+    from brokenness.registration.random_walk import WalkProgress
+
+    with _walk_progress(True) as progress:  # pytest's stderr is not a terminal
+        assert progress is None
+    fake = io.StringIO()
+    fake.isatty = lambda: True  # type: ignore[method-assign]
+    monkeypatch.setattr("sys.stderr", fake)
+    with _walk_progress(False) as progress:
+        assert progress is None
+    with _walk_progress(True) as progress:
+        assert callable(progress)
+        progress(WalkProgress(1, 10, 300, 12, 12, 3.5, 0.97, 120, 0.1, False))
+        progress(WalkProgress(1, 300, 300, 12, 0, 2.5, 0.98, 3600, 0.9, True))

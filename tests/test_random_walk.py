@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import cv2
@@ -189,16 +190,30 @@ def test_recovers_a_known_rigid_transform(moved):
     assert cands[0].confidence > 0.95
 
 
-def test_candidates_are_ranked_by_delta_and_distinct(building, moved):
+def test_candidates_are_distinct_and_the_first_explains_the_most(building, moved):
+    from brokenness.masking import lookup_distance, manhattan_distance_map
+
     moving, _, cands = moved
-    values = [delta(building, moving, c.transform).value for c in cands]
-    # The walk ranks on at most 20000 sampled free cells, delta() uses all of them.
-    assert values[0] == min(values)
-    assert all(a <= b + 0.1 for a, b in zip(values, values[1:], strict=False))
+    walls = manhattan_distance_map(building == 1)
+    rows, cols = np.nonzero(moving == 1)
+    occupied = np.column_stack([cols, rows]).astype(float)
+    explained = [
+        int(np.count_nonzero(lookup_distance(walls, c.transform.apply(occupied)) <= 2.0))
+        for c in cands
+    ]
+    assert explained[0] == max(explained)
+    box = np.array(
+        [
+            [cols.min(), rows.min()],
+            [cols.max(), rows.min()],
+            [cols.min(), rows.max()],
+            [cols.max(), rows.max()],
+        ],
+        float,
+    )
     for i, a in enumerate(cands):
         for b in cands[:i]:
-            corners = np.array([[0, 0], [moving.shape[1], moving.shape[0]]], float)
-            assert a.transform.displacement(b.transform, corners).max() >= 3.0
+            assert a.transform.displacement(b.transform, box).max() >= 8.0
 
 
 def test_same_seed_gives_the_same_answer_bit_for_bit(building):
@@ -302,3 +317,204 @@ def test_the_walk_stops_within_max_iterations_and_returns_a_candidate():
     reg = RandomWalkRegistrar(rotations=2, max_iterations=3, start_grid=0)
     cands = reg.candidates(reg.prepare_reference(_rooms(60)), _rooms(60), 4)
     assert 1 <= len(cands) <= 4
+
+
+# --------------------------------------------------------------------------------------------
+# Distance maps: the two-pass transform against brute force
+# --------------------------------------------------------------------------------------------
+def _brute_manhattan(mask: np.ndarray) -> np.ndarray:
+    """Manhattan distance to the nearest True cell, by comparing every pair of cells."""
+    rows, cols = np.indices(mask.shape)
+    tr, tc = np.nonzero(mask)
+    d = np.abs(rows[..., None] - tr) + np.abs(cols[..., None] - tc)
+    return d.min(axis=-1).astype(np.float64)
+
+
+@pytest.mark.parametrize(
+    "cells",
+    [
+        [(0, 0)],  # only the forward pass carries this one down and right
+        [(16, 22)],  # the bottom-right corner: only the backward pass reaches the rest
+        [(16, 0), (0, 22)],
+        [(8, 11)],
+    ],
+)
+def test_distance_map_equals_brute_force_for_single_seeds(cells):
+    from brokenness.masking import manhattan_distance_map
+
+    mask = np.zeros((17, 23), bool)
+    for r, c in cells:
+        mask[r, c] = True
+    got = manhattan_distance_map(mask)
+    assert got.dtype == np.float32
+    assert np.array_equal(got.astype(np.float64), _brute_manhattan(mask))
+
+
+def test_distance_map_equals_brute_force_on_random_maps():
+    from brokenness.masking import manhattan_distance_map
+
+    rng = np.random.default_rng(3)
+    for shape, density in (((31, 19), 0.02), ((12, 40), 0.1), ((25, 25), 0.005)):
+        mask = rng.random(shape) < density
+        mask[rng.integers(shape[0]), rng.integers(shape[1])] = True
+        assert np.array_equal(manhattan_distance_map(mask), _brute_manhattan(mask))
+
+
+def test_lookup_tables_hold_exact_integer_distances_and_mark_unknown_cells():
+    from brokenness.registration._rw_scoring import UNKNOWN_VALUE, build_tables
+
+    rng = np.random.default_rng(5)
+    states = rng.choice(np.array([-1, 0, 1], np.int8), size=(21, 27), p=[0.3, 0.6, 0.1])
+    tables = build_tables(states, states.size)
+    for k, kind in enumerate((1, 0)):
+        expected = _brute_manhattan(states == kind)
+        table = tables.tables[k]
+        assert table.dtype == np.uint16
+        known = states >= 0
+        assert np.array_equal(table[known], expected[known].astype(np.uint16))
+        assert np.all(table[~known] == UNKNOWN_VALUE)
+    assert tables.counts == (int(np.sum(states == 1)), int(np.sum(states == 0)))
+
+
+# --------------------------------------------------------------------------------------------
+# Options, budgets, progress, repeatability
+# --------------------------------------------------------------------------------------------
+_QUICK = {"rotations": 4, "start_grid": 2, "max_iterations": 60, "patience": 20}
+
+
+def test_walk_options_are_a_frozen_dataclass_and_keywords_override_them():
+    import dataclasses
+
+    from brokenness.registration.random_walk import WalkOptions
+
+    opt = WalkOptions(rotations=8)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opt.rotations = 3  # type: ignore[misc]
+    reg = RandomWalkRegistrar(options=opt, patience=7)
+    assert reg.options.rotations == 8 and reg.options.patience == 7
+    with pytest.raises(ParameterError):
+        WalkOptions(time_budget=0.0)
+    with pytest.raises(ParameterError):
+        RandomWalkRegistrar(options={"rotations": 3})  # type: ignore[arg-type]
+
+
+def test_same_seed_same_answer_alone_and_after_other_calls(building):
+    moving, _ = _moved_copy(building, 25.0, (2.0, 1.0))
+    other, _ = _moved_copy(building, -100.0, (0.0, 3.0))
+
+    def key(cands):
+        return [(c.transform.matrix.tobytes(), c.acceptance) for c in cands]
+
+    alone = RandomWalkRegistrar(seed=3, **_QUICK)
+    first = key(alone.candidates(alone.prepare_reference(building), moving, 4))
+    batch = RandomWalkRegistrar(seed=3, **_QUICK)
+    prepared = batch.prepare_reference(building)
+    batch.candidates(prepared, other, 4)  # another pair first, as in a batch
+    assert key(batch.candidates(prepared, moving, 4)) == first
+
+
+def test_the_iteration_budget_bounds_the_walk_and_restarts_happen():
+    from brokenness.registration._rw_scoring import build_tables
+    from brokenness.registration.random_walk import _walk
+
+    ref = _rooms(60)
+    reg = RandomWalkRegistrar(
+        rotations=2, start_grid=0, spectral_starts=0, max_iterations=50, patience=5
+    )
+    prepared = reg.prepare_reference(ref)
+    walk = _walk(reg, prepared, build_tables(ref, 6000), [], time.perf_counter())
+    assert walk.steps <= 50
+    assert walk.restarts > 0  # patience 5: walkers stall and start again from their best
+    assert not walk.stopped_by_time
+
+
+def test_a_time_budget_cuts_the_walk_short_and_still_returns_candidates(building):
+    moving, _ = _moved_copy(building, 37.0, (6.0, -4.0))
+    reports = []
+    reg = RandomWalkRegistrar(
+        seed=1, max_iterations=100_000, patience=100_000, time_budget=0.3, progress=reports.append
+    )
+    t0 = time.perf_counter()
+    cands = reg.candidates(reg.prepare_reference(building), moving, 3)
+    assert time.perf_counter() - t0 < 10.0
+    assert cands and reports[-1].done and reports[-1].step < 100_000
+
+
+def test_progress_is_reported_while_walking(building):
+    from brokenness.registration.random_walk import WalkProgress
+
+    moving, _ = _moved_copy(building, 10.0, (1.0, 1.0))
+    reports: list[WalkProgress] = []
+    reg = RandomWalkRegistrar(seed=2, progress=reports.append, progress_every=5, **_QUICK)
+    prepared = reg.prepare_reference(building)
+    reg.candidates(prepared, moving, 2)
+    reg.candidates(prepared, moving, 2)
+    assert all(isinstance(r, WalkProgress) for r in reports)
+    assert [r.call for r in reports if r.done] == [1, 2]
+    steps = [r.step for r in reports if r.call == 1]
+    assert steps == sorted(steps) and steps[-1] <= _QUICK["max_iterations"]
+    assert len(steps) >= 3
+    assert all(0.0 <= r.best_acceptance <= 1.0 for r in reports)
+
+
+def test_candidates_carry_the_acceptance_indicator(building, moved):
+    moving, _, cands = moved
+    for c in cands:
+        d = delta(building, moving, c.transform)
+        assert c.acceptance == pytest.approx(d.acceptance, abs=1e-12)
+        assert c.confidence == c.acceptance
+
+
+# --------------------------------------------------------------------------------------------
+# Several good alignments: the walk returns the distinct optima
+# --------------------------------------------------------------------------------------------
+def _motion(degrees: float, pivot: tuple[float, float], shift: tuple[float, float]):
+    """The reference -> map motion that turns about ``pivot`` and then shifts."""
+    turn = RigidTransform(math.radians(degrees))
+    p = np.array([pivot])
+    t = p[0] - turn.apply(p)[0] + np.array(shift)
+    return RigidTransform(turn.rotation, t[0], t[1])
+
+
+def test_both_parts_of_a_broken_map_are_among_the_candidates(building):
+    """A map in two parts (57 % and 43 % of the walls), each moved its own way: the walk
+    returns both alignments among its candidates, not only the nearest optimum."""
+    rows, cols = building.shape
+    cut = int(cols * 0.45)
+    big = np.full_like(building, -1)
+    big[:, :cut] = building[:, :cut]
+    small = np.full_like(building, -1)
+    small[:, cut:] = building[:, cut:]
+    # map -> reference transforms; the two parts land side by side, apart, in the map
+    a = _motion(20.0, (cut / 2, rows / 2), (30.0, 30.0)).inverse()
+    b = _motion(-35.0, ((cut + cols) / 2, rows / 2), (90.0, 30.0)).inverse()
+    shape = (rows + 60, cols + 160)
+    part_a, part_b = _warp(big, a, shape), _warp(small, b, shape)
+    assert not np.any((part_a >= 0) & (part_b >= 0))  # the parts do not overlap
+    moving = np.maximum(part_a, part_b)
+    assert np.count_nonzero(part_b == 1) > 0.3 * np.count_nonzero(moving == 1)
+    for spectral_starts in (6, 0):  # with the spectral start poses, and the pure walk
+        reg = RandomWalkRegistrar(seed=4, spectral_starts=spectral_starts)
+        cands = reg.candidates(reg.prepare_reference(building), moving, 6)
+        err_a = [_errors(c.transform, a, part_a)[1] for c in cands]
+        err_b = [_errors(c.transform, b, part_b)[1] for c in cands]
+        assert min(err_a) < 2.0 and min(err_b) < 2.0
+        assert min(err_a[0], err_b[0]) < 2.0  # the best candidate is one of the two
+
+
+# --------------------------------------------------------------------------------------------
+# The acceptance indicator of a partition
+# --------------------------------------------------------------------------------------------
+def test_partition_acceptance_is_one_in_place_and_lower_when_moved(building):
+    from brokenness.registration.random_walk import partition_acceptance
+
+    labels = np.where(building == 1, 0, -1).astype(np.int16)
+    right = labels.copy()
+    right[:, : building.shape[1] // 2][right[:, : building.shape[1] // 2] == 0] = 1
+    same = partition_acceptance(building, building, right, [RigidTransform()] * 2)
+    assert same == [1.0, 1.0]
+    off = partition_acceptance(
+        building, building, right, [RigidTransform(), RigidTransform(0.0, 3.0, 2.0)]
+    )
+    assert off[0] == 1.0 and off[1] is not None and off[1] < 0.95
+    assert partition_acceptance(building, building, labels, []) == []

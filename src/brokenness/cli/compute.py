@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +88,16 @@ def add_parser(subparsers: Any) -> None:
         default=0.02,
         help="smallest partition as a share of the occupied cells (default 0.02)",
     )
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help=(
+            "random-walk only: stop each registration's walk after SECONDS (results then "
+            "depend on the machine; the default iteration budget alone is deterministic)"
+        ),
+    )
     add_map_options(p)
     add_verbosity(p)
     p.set_defaults(func=run)
@@ -129,11 +142,24 @@ def run(args: argparse.Namespace) -> int:
     labels = parse_labels(args.label)
     if not 10 <= args.dpi <= 1200:
         raise ParameterError(f"--dpi must be between 10 and 1200, got {args.dpi}")
+    budget = getattr(args, "time_budget", None)
+    if budget is not None and not (budget > 0 and math.isfinite(budget)):
+        raise ParameterError(f"--time-budget must be a positive number of seconds, got {budget}")
     m, ref = load_pair(args)
     check_measurable(m.n_occupied, args.map)
     check_threshold(args.threshold, ref.shape)
-    with _busy(args, m), warnings.catch_warnings():  # not measured: said below, as the reason
-        warnings.simplefilter("ignore", NothingFoundWarning)
+    options: dict[str, Any] = {}
+    if args.method == "random-walk" and budget is not None:
+        options["time_budget"] = budget
+    walk = args.method == "random-walk" and not args.quiet
+    with (
+        _busy(args, m),
+        _walk_progress(walk) as progress,
+        warnings.catch_warnings(),
+    ):
+        warnings.simplefilter("ignore", NothingFoundWarning)  # said once, below, as the reason
+        if progress is not None:
+            options["progress"] = progress
         result = compute_brokenness(
             m,
             ref,
@@ -141,7 +167,11 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed,
             threshold=args.threshold,
             min_partition_fraction=args.min_partition_fraction,
+            registration_options=options or None,
         )
+    # The progress display is not a parameter of the result (nor JSON): keep it out of the
+    # record, the JSON and the saved results.
+    (result.parameters.get("registration_options") or {}).pop("progress", None)
     status = EXIT_OK if result.measured else EXIT_NOT_MEASURED
     if not result.measured or (result.degree or 0) >= MIRROR_CHECK_DEGREE:
         _warn_if_mirrored(m, ref, args)
@@ -182,10 +212,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _busy(args: argparse.Namespace, m: OccupancyMap) -> Any:
-    """A spinner on a terminal (stderr) while a large map (or the random walk) computes."""
+    """A spinner on a terminal (stderr) while a large map computes (the random walk shows its
+    own progress bar)."""
     import contextlib
 
-    slow = m.states.size >= 4_000_000 or args.method == "random-walk"
+    slow = m.states.size >= 4_000_000 and args.method != "random-walk"  # the walk: a bar
     if args.quiet or not sys.stderr.isatty() or not slow:
         return contextlib.nullcontext()
     rows, cols = m.shape
@@ -205,6 +236,43 @@ def _warn_if_mirrored(m: OccupancyMap, ref: OccupancyMap, args: argparse.Namespa
         from ..io import MapWarning
 
         warnings.warn(check.message(), MapWarning, stacklevel=2)
+
+
+@contextmanager
+def _walk_progress(wanted: bool) -> Iterator[Callable[[Any], None] | None]:
+    """A progress callback for the random walk, shown with rich on stderr when it is a TTY.
+
+    Yields ``None`` (no display) when not ``wanted`` or stderr is not a terminal, so that
+    pipes and log files get no control characters.
+    """
+    if not wanted or not sys.stderr.isatty():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    with Progress(
+        TextColumn("random walk, registration {task.fields[call]}"),
+        BarColumn(),
+        TextColumn("step {task.completed}/{task.total}"),
+        TextColumn("best Delta {task.fields[delta]:.2f}, omega {task.fields[omega]:.3f}"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+        task = bar.add_task("walk", total=1, call=0, delta=0.0, omega=0.0)
+
+        def show(p: Any) -> None:
+            bar.update(
+                task,
+                completed=p.max_steps if p.done else p.step,
+                total=p.max_steps,
+                call=p.call,
+                delta=p.best_delta,
+                omega=p.best_acceptance,
+            )
+
+        yield show
 
 
 def _json_record(result: BrokennessResult, args: argparse.Namespace) -> dict[str, Any]:
@@ -244,6 +312,8 @@ def _print_summary(
     headers = ["#", "cells", "share", "rot°", "shift (cells)"]
     headers += ["world rot°", "shift (m)"] if metres else []
     headers += ["off°", "off m" if metres else "off", "conf"]
+    omega = any(p.acceptance is not None for p in result.partitions)
+    headers += ["omega"] if omega else []
     for col in headers:
         table.add_column(col, justify="right", no_wrap=True)
     for p in result.partitions:
@@ -255,6 +325,8 @@ def _print_summary(
             row += ["", ""] if w is None else [f"{w.rotation_deg:.2f}", f"{w.tx:.2f}, {w.ty:.2f}"]
         off = p.displacement_m if metres and p.displacement_m is not None else p.displacement
         row += [f"{p.rotation_offset_deg:.2f}", f"{off:.2f}", f"{p.confidence:.2f}"]
+        if omega:
+            row.append("" if p.acceptance is None else f"{p.acceptance:.3f}")
         table.add_row(*row)
     out.print(table)
     out.print(

@@ -258,6 +258,12 @@ def compute_brokenness(
     labels = labels_in_original_grid(labels_working, working, to_working, original)
     n_occupied = original.n_occupied
     assigned = int(np.count_nonzero(labels >= 0))
+    acceptance: list[float | None] = [None] * len(found_partitions)
+    if method == "random-walk":  # the random walk's own quality measure, per partition
+        from ..registration.random_walk import partition_acceptance
+
+        transforms = [p.transform for p in found_partitions]
+        acceptance = partition_acceptance(original.states, ref.states, labels, transforms)
     # Partition sizes and fractions are counted in the original map's cells.
     partitions = tuple(
         Partition(
@@ -271,6 +277,7 @@ def compute_brokenness(
             displacement_m=p.displacement_m,
             step_seconds=p.step_seconds,
             contradiction=ratios[p.index],
+            acceptance=acceptance[p.index],
         )
         for p in found_partitions
     )

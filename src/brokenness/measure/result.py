@@ -51,6 +51,11 @@ class Partition:
         How often the map's free space of this partition lands on reference walls under its
         transform, over the rate of a random placement (0: never; 1: as often as chance;
         ``None``: too little free space to tell). See :mod:`brokenness.measure.evidence`.
+    acceptance : float or None
+        Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` of the
+        partition's cells under its transform (see
+        :func:`brokenness.registration.random_walk.partition_acceptance`); reported for
+        ``method="random-walk"``, ``None`` otherwise.
     """
 
     index: int
@@ -63,6 +68,7 @@ class Partition:
     displacement_m: float | None
     step_seconds: float
     contradiction: float | None = None
+    acceptance: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
@@ -77,6 +83,7 @@ class Partition:
             "displacement_m": self.displacement_m,
             "step_seconds": self.step_seconds,
             "contradiction": self.contradiction,
+            "acceptance": self.acceptance,
         }
 
 

@@ -32,6 +32,8 @@ __all__: list[str] = []
 KINDS: tuple[int, int] = (OCCUPIED, FREE)
 #: Table value of an unknown cell (and of every point off the map).
 UNKNOWN_VALUE: int = 65535
+#: Points gathered per ``cv2.remap`` call (OpenCV asserts fewer than 32767 columns).
+_REMAP_COLUMNS: int = 32000
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,17 +122,51 @@ def build_tables(states: NDArray[np.int8], max_points: int) -> MapTables:
     )
 
 
+def subsample_tables(tables: MapTables, max_points: int) -> MapTables:
+    """The same tables with at most ``max_points`` cells of each kind (see
+    :func:`sample_indices`); the distance maps are shared, not copied."""
+    points = []
+    weights = []
+    for pts, w, n in zip(tables.points, tables.weights, tables.counts, strict=True):
+        if pts.shape[1] <= max_points:
+            points.append(pts)
+            weights.append(w)
+            continue
+        keep = sample_indices(pts.shape[1], max_points)
+        points.append(np.ascontiguousarray(pts[:, keep]))
+        weights.append(n / keep.size)
+    return MapTables(
+        shape=tables.shape,
+        tables=tables.tables,
+        points=(points[0], points[1]),
+        weights=(weights[0], weights[1]),
+        counts=tables.counts,
+        cap=tables.cap,
+    )
+
+
 def _lookup(
     tables: MapTables, kind_index: int, points: NDArray[np.float32], matrix: NDArray[np.float32]
 ) -> NDArray[np.uint16]:
     """Table values at the transformed points, shape (W, n); unknown off the map.
 
     ``points`` (3, n) homogeneous columns; ``matrix`` (2W, 3) holds the x rows of the ``W``
-    affine transforms, then their y rows. One matrix product gives all coordinates, and
+    affine transforms, then their y rows. Element-wise products give all coordinates, and
     ``cv2.remap`` with nearest-neighbour interpolation (round half to even, like
     ``numpy.rint``) gathers the table values, reading unknown outside the grid.
     """
-    coords = matrix @ points
+    if points.shape[1] > _REMAP_COLUMNS:  # cv2.remap handles at most 32766 columns
+        return np.concatenate(
+            [
+                _lookup(tables, kind_index, points[:, i : i + _REMAP_COLUMNS], matrix)
+                for i in range(0, points.shape[1], _REMAP_COLUMNS)
+            ],
+            axis=1,
+        )
+    # Element-wise products, not a matrix product: BLAS would bring its own threads (which
+    # spin for minutes on a loaded machine) and, with them, results that could depend on
+    # the number of threads; these are exact float32 operations in a fixed order.
+    coords = matrix[:, 0:1] * points[0] + matrix[:, 1:2] * points[1] + matrix[:, 2:3]
     w = matrix.shape[0] // 2
     values = cv2.remap(
         tables.tables[kind_index],
@@ -143,14 +179,39 @@ def _lookup(
     return np.asarray(values, dtype=np.uint16)  # a no-op: remap keeps the table's type
 
 
+def explained_cells(
+    reference: MapTables,
+    points: NDArray[np.float32],
+    cos: NDArray[np.float64],
+    sin: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    explain_cells: float,
+) -> NDArray[np.bool_]:
+    """Which of ``points`` (3, n) land within ``explain_cells`` of an occupied reference cell
+    under each of the ``W`` transforms: a (W, n) boolean array."""
+    w = cos.shape[0]
+    forward = np.empty((2 * w, 3), dtype=np.float32)
+    forward[:w, 0], forward[:w, 1], forward[:w, 2] = cos, -sin, tx
+    forward[w:, 0], forward[w:, 1], forward[w:, 2] = sin, cos, ty
+    v = _lookup(reference, 0, points, forward)
+    return np.asarray(v <= min(explain_cells, UNKNOWN_VALUE - 1))
+
+
 @dataclass(frozen=True)
 class Scores:
-    """Delta and its parts for a batch of ``W`` transforms (arrays of shape (W,))."""
+    """Delta and its parts for a batch of ``W`` transforms (arrays of shape (W,)).
+
+    ``explained`` is not part of Delta: the occupied moving cells (scaled back to cells when
+    sampled) that land within ``explain_cells`` of an occupied reference cell, the masking's
+    measure of how much of the map a transform explains.
+    """
 
     delta: NDArray[np.float64]
     psi: NDArray[np.float64]
     agree: NDArray[np.float64]
     disagree: NDArray[np.float64]
+    explained: NDArray[np.float64]
 
     @property
     def acceptance(self) -> NDArray[np.float64]:
@@ -168,6 +229,7 @@ def score(
     ty: NDArray[np.float64],
     c_lock: float,
     chunk_elements: int = 400_000,
+    explain_cells: float = 2.0,
 ) -> Scores:
     """Delta = Psi (restricted to the overlap) + c_lock * (disagree - agree), per transform.
 
@@ -182,6 +244,9 @@ def score(
     chunk_elements : int
         Transforms are evaluated in groups of about this many transformed points, so that
         the temporaries stay in the processor's cache (a speed setting only).
+    explain_cells : float
+        Distance (Manhattan, cells) within which an occupied moving cell counts as
+        explained (``Scores.explained``).
 
     Notes
     -----
@@ -206,13 +271,14 @@ def score(
                 ty[i : i + group],
                 c_lock,
                 chunk_elements,
+                explain_cells,
             )
             for i in range(0, cos.shape[0], group)
         ]
         return Scores(
             *(
                 np.concatenate([getattr(p, f) for p in parts])
-                for f in ("delta", "psi", "agree", "disagree")
+                for f in ("delta", "psi", "agree", "disagree", "explained")
             )
         )
     w = cos.shape[0]
@@ -227,6 +293,7 @@ def score(
     psi = np.zeros(w)
     agree = np.zeros(w)
     disagree = np.zeros(w)
+    explained = np.zeros(w)
     for k in range(len(KINDS)):
         # Moving -> reference.
         if moving.points[k].shape[1]:
@@ -236,11 +303,14 @@ def score(
             weight = moving.weights[k]
             agree += n_agree * weight
             disagree += (n_known - n_agree) * weight
+            if KINDS[k] == OCCUPIED:
+                near = np.count_nonzero(v <= min(explain_cells, UNKNOWN_VALUE - 1), axis=1)
+                explained += near * weight
         # Reference -> moving, through the inverse transform.
         if reference.points[k].shape[1]:
             psi += _reduce(_lookup(moving, k, reference.points[k], inverse), moving.cap)[0]
     delta = psi + c_lock * (disagree - agree)
-    return Scores(delta=delta, psi=psi, agree=agree, disagree=disagree)
+    return Scores(delta=delta, psi=psi, agree=agree, disagree=disagree, explained=explained)
 
 
 def _reduce(

@@ -130,7 +130,9 @@ def register(
     if not found:  # pragma: no cover - the protocol promises at least one
         raise MapError(f"registration method {method!r} returned no hypothesis")
     candidates = tuple(
-        Candidate(c.transform.compose(to_work).with_world(mov_map, ref_map), c.confidence)
+        Candidate(
+            c.transform.compose(to_work).with_world(mov_map, ref_map), c.confidence, c.acceptance
+        )
         for c in found
     )
     seconds = time.perf_counter() - start

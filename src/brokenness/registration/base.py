@@ -29,10 +29,15 @@ class Candidate:
         Moving cells -> reference cells.
     confidence : float
         Method-specific quality of the hypothesis in [0, 1] (1 = unambiguous).
+    acceptance : float, optional
+        Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` of the
+        hypothesis (cells known in both maps with the same / a different state), when the
+        method computes it (the random walk does; iFMI leaves it ``None``).
     """
 
     transform: RigidTransform
     confidence: float
+    acceptance: float | None = None
 
 
 @dataclass(frozen=True)
@@ -78,7 +83,11 @@ class Registration:
             "confidence": self.confidence,
             "seconds": self.seconds,
             "candidates": [
-                {"transform": c.transform.to_dict(), "confidence": c.confidence}
+                {
+                    "transform": c.transform.to_dict(),
+                    "confidence": c.confidence,
+                    "acceptance": c.acceptance,
+                }
                 for c in self.candidates
             ],
         }

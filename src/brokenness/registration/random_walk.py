@@ -11,51 +11,94 @@ Carpin (2006), called BCMM in the paper's tables: a stochastic search over rigid
 where ``Psi`` is the picture distance (Manhattan distances to the nearest cell of the same
 kind, both ways; see :func:`brokenness.picture_distance`), ``agr`` counts the cells known in
 both maps that hold the same state and ``dis`` those that hold different states (occupied vs
-free). The *acceptance indicator* ``omega = agr / (agr + dis)`` judges the result.
+free). The *acceptance indicator* ``omega = agr / (agr + dis)`` judges the result; it is
+reported with every candidate (:attr:`Candidate.acceptance`) and, for ``compute_brokenness``
+with this method, per partition (:func:`partition_acceptance`).
 
-What is taken from where
-------------------------
-- ``Delta``, ``agr``, ``dis``, ``omega``, the weight ``c_lock`` and the picture distance
-  ``Psi`` (sum over occupied and free cells, both directions, of the mean Manhattan distance
-  to the nearest cell of the same kind): Birk & Carpin (2006), as summarised by Birk (2010).
-  Here ``Psi`` is restricted to the overlap (cells whose counterpart under ``T`` is known),
-  because in the recursion of Algorithm 1 the moving map is often only a part of the
-  reference; the lock term rewards a large overlap.
-- The search: an adaptive random walk in the sense of Carpin & Pillonetto (2005), as Birk &
-  Carpin (2006) use it: Gaussian increments in ``(theta, tx, ty)`` whose mean and covariance
-  adapt to the walk's recent accepted steps; an improving step is always accepted, a worse
-  one with a small fixed probability ``worse_acceptance``. The exact update rule is ours:
-  the covariance is the second moment of the last ``window`` accepted increments (step
-  sizes follow the steps that paid off) plus a floor, and the mean is the average move of
-  the last ``window`` steps counting a rejected proposal as a move of 0. (A mean that only
-  averages accepted increments keeps pushing in its last direction forever once the walk
-  sits in an optimum, and we saw the walk drift out of the optimum that way.) Rotation
-  turns about the moving map's centroid, so that the three coordinates are decoupled.
-- Restarts: several walkers, the best one wins. Their start poses are ours and
-  deterministic: ``rotations`` evenly spread angles, and per angle the ``walkers_per_angle``
-  best (lowest Delta) of a few start positions for the moving map's centroid (the
-  reference's centroid, its own position, a ``start_grid x start_grid`` lattice over the
-  reference's known cells).
-- The stopping rule (a walker stops after ``patience`` steps that did not improve its best
-  Delta by more than ``tolerance``, or after ``max_iterations``), the step sizes and the
-  default ``c_lock`` are our choices, tuned on the maps in ``tests/data``: the numerical
-  values of the original implementation were not available to us. The default
-  ``c_lock = lock_weight / N`` (``N`` known moving cells) makes a perfect full overlap worth
-  ``lock_weight`` cells of picture distance whatever the map size.
-- Subsampling (ours): when a map has more than ``max_points`` occupied (or free) cells, an
-  evenly spaced subset of them (row-major order, independent of the seed) takes part, and
-  ``agr``/``dis`` are scaled back to cells.
+Every parameter and where it comes from
+---------------------------------------
+All options are fields of the frozen :class:`WalkOptions` (the registrar also takes them as
+keywords). "Paper" means Birk & Carpin (2006) [1]_ / Carpin & Pillonetto (2005) [2]_ as
+summarised by Birk (2010); "ours" means chosen by us and measured on the maps of
+``tests/data`` and the paper-style tables (``benchmarks/experiment_tables.py``), because the
+numerical settings of the original implementation were not available to us.
 
-Known limitation (of the method, not the implementation): when the moving map holds several
-partitions, ``Psi`` averages over all of them, so the minimum of Delta can sit a fraction of
-a degree away from the best transform of the largest partition; the recursion refines the
-chosen candidate anyway.
+- ``Delta``, ``agr``, ``dis``, ``omega``, ``c_lock`` and ``Psi`` (sum over occupied and free
+  cells, both directions, of the mean Manhattan distance to the nearest cell of the same
+  kind): paper. ``Psi`` is restricted to the overlap (cells whose counterpart under ``T`` is
+  known), because in the recursion of Algorithm 1 the moving map is often only a part of the
+  reference; the lock term rewards a large overlap (ours).
+- The distance maps: the paper's two-pass (forward / backward raster scan) Manhattan
+  distance transform; we use OpenCV's two-pass ``distanceTransform`` with the 3x3 L1 mask,
+  which computes the same exact Manhattan distances (tested against brute force, including
+  cells that only the backward pass reaches, in ``tests/test_random_walk.py``). Distances
+  are integers, stored as uint16: no division anywhere.
+- ``lock_weight`` = 10 (ours): ``c_lock = lock_weight / N`` (``N`` known moving cells), so a
+  perfect full overlap is worth ``lock_weight`` cells of picture distance whatever the map
+  size; ``c_lock`` sets the weight directly.
+- The search (paper, [2]_): Gaussian increments in ``(theta, ux, uy)`` whose covariance is
+  estimated from the last ``window`` = 8 (ours) accepted increments (their second moment:
+  the step size follows the steps that paid off) plus a floor ``min_rotation_step_deg`` =
+  0.1, ``min_translation_step`` = 0.3 cell (ours: the walk never freezes); the mean is the
+  average move of the last ``window`` steps, a rejected proposal counting as 0 (ours: a
+  mean of accepted increments only kept pushing the walk out of an optimum). Before two
+  steps were accepted the standard deviations are ``rotation_step_deg`` = 4 and
+  ``translation_step`` = 2 % of the reference's larger side (ours). An improving step is
+  always accepted, a worse one with the small fixed probability ``worse_acceptance`` = 0.05
+  (paper: a small constant; the value is ours). Rotation turns about the moving map's
+  centroid, so that the three coordinates are decoupled (ours).
+- Restarts (paper: the walk restarts from good states when it stalls): a walker that has
+  not improved its best Delta by more than ``tolerance`` = 0.01 in ``patience`` = 60 steps
+  (ours) restarts from its best state with the initial step distribution (large steps
+  again, to leave the basin if a better one is near), at most ``restarts`` = 2 times (ours);
+  then it stops. The best state of each walker is kept.
+- Multiple starts (ours; the paper starts one walk near the identity, which works for two
+  maps of one robot but not for the remainder of a broken map, which has several good
+  alignments, one per partition): ``rotations`` = 12 start angles, evenly spread, and per
+  angle the ``walkers_per_angle`` = 2 best (lowest Delta) of a few start positions of the
+  moving map's centroid (the reference's centroid, its own position, a ``start_grid`` = 6
+  by 6 lattice over the reference's known cells); plus ``spectral_starts`` = 6 start poses
+  from the spectral registration (iFMI hypotheses of the same remainder), which point at
+  the partitions' own alignments. The walkers' states are the candidates: several
+  distinct ones (``dedupe_cells`` = 8: results that move every corner of the box of the
+  moving map's occupied cells by less are one) are returned, and the recursion keeps the
+  one under which most cells agree. Each walker offers two states: its lowest Delta and
+  the one that *explained* the most occupied cells on its way (within ``explain_cells``
+  = 2 of a reference wall, the masking's ``c``), and the candidates are ranked greedily by
+  the cells they explain that those ranked before them do not, ties by Delta (ours: on a
+  remainder, whose reference walls other partitions also claim, we measured Delta lowest
+  at a wrong placement of a part while the walk had passed through the right one; and
+  near variants of the best alignment explain little that it does not).
+  ``spectral_starts=0`` gives the pure stochastic search.
+- Budgets: ``max_iterations`` = 300 steps per walker (ours; the iteration budget, counted in
+  lockstep steps of all walkers: deterministic) and ``time_budget`` (seconds per
+  registration, default none). A time budget makes the result depend on the machine and
+  its load; only the iteration budget is deterministic, so it is the default.
+- Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
+  cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
+  part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
+  walkers' best states uses every cell.
+
+Repeatability: ``seed`` (default :data:`DEFAULT_SEED`) seeds a fresh
+``numpy.random.default_rng`` stream inside every :meth:`RandomWalkRegistrar.candidates`
+call; no global random state is used, so the same input gives the same output bit for bit,
+alone, in a batch, in any order (unless a ``time_budget`` cuts a walk short).
+
+Known limitations (of the method, not the implementation): when the moving map holds
+several partitions, ``Psi`` averages over all of them, so the minimum of Delta can sit a
+fraction of a degree away from the best transform of the largest partition (the recursion
+refines the chosen candidate on the cells anyway), or at a wrong placement of a part (hence
+the ranking by explained cells). A small part whose angle neither the coarse grid's best
+start positions nor the spectral hypotheses come near can be missed (with
+``walkers_per_angle=1`` the 120-degree part of the fifth map of the paper-style Table I was;
+2 finds it, and took the realistic benchmark's quick set from 16 to 18 of 25 exact).
 
 Cost of one evaluation: the distance maps of the reference are computed once by
 :meth:`RandomWalkRegistrar.prepare_reference`, those of the moving map once per
 :meth:`RandomWalkRegistrar.candidates` call; an evaluation transforms only the coordinates of
-the (at most ``max_points`` per kind, deterministically subsampled) occupied and free cells
-of both maps and looks distances up, all walkers of a step at once.
+the sampled occupied and free cells of both maps and looks distances up, all walkers of a
+step at once (``O(walkers x max_points)`` per step, independent of the map's size once the
+maps have more than ``max_points`` cells of a kind).
 
 References
 ----------
@@ -72,7 +115,9 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -81,10 +126,18 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, ParameterError
 from ..grid import OccupancyMap
 from ..transform import RigidTransform
-from ._rw_scoring import MapTables, build_tables, score
+from ._rw_scoring import MapTables, build_tables, explained_cells, score, subsample_tables
 from .base import Candidate
 
-__all__ = ["DEFAULT_SEED", "Dissimilarity", "RandomWalkRegistrar", "delta"]
+__all__ = [
+    "DEFAULT_SEED",
+    "Dissimilarity",
+    "RandomWalkRegistrar",
+    "WalkOptions",
+    "WalkProgress",
+    "delta",
+    "partition_acceptance",
+]
 
 #: Seed used when ``seed=None``: the random walk is always repeatable.
 DEFAULT_SEED: int = 2006
@@ -222,33 +275,205 @@ def _c_lock(c_lock: float | None, lock_weight: float, moving: MapTables) -> floa
 
 
 # --------------------------------------------------------------------------------------------
+# Options, progress
+# --------------------------------------------------------------------------------------------
+def _check_int(name: str, value: Any, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _check_float(name: str, value: Any, *, allow_zero: bool = False) -> float:
+    if isinstance(value, bool):
+        raise ParameterError(f"{name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ParameterError(f"{name} must be a {kind} number, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class WalkOptions:
+    """Settings of the adaptive random walk (see the module docstring for their sources).
+
+    Attributes
+    ----------
+    rotations : int
+        Start angles of the coarse grid, evenly spread over 360 degrees (default 12).
+    start_grid : int
+        Start positions per angle: the centroid-aligned one, the moving map's own position,
+        and a ``start_grid x start_grid`` lattice over the reference's known cells
+        (default 6; 0 for the first two only).
+    walkers_per_angle : int
+        The best this many start positions per angle (lowest Delta) each start a walker
+        (default 2).
+    spectral_starts : int
+        Start poses taken from the spectral (iFMI) hypotheses of the same moving map
+        (default 6; 0 for the pure stochastic search).
+    max_iterations : int
+        Iteration budget: lockstep steps of all walkers at most (default 300).
+    patience : int
+        A walker stalls after this many steps without improving its best Delta by more
+        than ``tolerance`` (default 60).
+    tolerance : float
+        Smallest improvement of Delta that counts as progress (default 0.01).
+    restarts : int
+        A stalled walker restarts from its best state with the initial step distribution
+        at most this many times, then stops (default 2).
+    worse_acceptance : float
+        Probability of accepting a step that makes Delta worse, in [0, 1) (default 0.05).
+    window : int
+        Recent steps that the step distribution's mean and covariance are estimated from
+        (default 8).
+    rotation_step_deg : float
+        Standard deviation of the rotation steps before adaptation (default 4).
+    translation_step : float, optional
+        Same for translation, cells; default 2 % of the reference's larger side (>= 2).
+    min_rotation_step_deg, min_translation_step : float
+        Floors added to the adapted standard deviations (defaults 0.1 degree, 0.3 cell).
+    lock_weight : float
+        Default ``c_lock = lock_weight / N`` (``N`` known moving cells); default 10.
+    c_lock : float, optional
+        Explicit weight of ``disagree - agree`` per cell, overriding ``lock_weight``.
+    max_points : int
+        Occupied and free cells of each map that take part in the walk's evaluations, at
+        most, evenly spaced in row-major order (default 6000; >= 16).
+    dedupe_cells : float
+        Walkers' results that move every corner of the bounding box of the moving map's
+        occupied cells by less than this many cells are one candidate (default 8: the
+        recursion refines a candidate by a few cells anyway, so closer ones would crowd
+        out the other partitions' alignments).
+    explain_cells : float
+        An occupied moving cell is *explained* by a transform when it lands within this
+        Manhattan distance of an occupied reference cell (default 2, the masking's ``c``);
+        candidates are ranked by the cells they explain.
+    time_budget : float, optional
+        Wall-clock seconds per registration after which the walk stops and returns what it
+        has (default none). Makes results machine-dependent: only the iteration budget is
+        deterministic.
+
+    Raises
+    ------
+    ParameterError
+        For a value out of range.
+    """
+
+    rotations: int = 12
+    start_grid: int = 6
+    walkers_per_angle: int = 2
+    spectral_starts: int = 6
+    max_iterations: int = 300
+    patience: int = 60
+    tolerance: float = 0.01
+    restarts: int = 2
+    worse_acceptance: float = 0.05
+    window: int = 8
+    rotation_step_deg: float = 4.0
+    translation_step: float | None = None
+    min_rotation_step_deg: float = 0.1
+    min_translation_step: float = 0.3
+    lock_weight: float = 10.0
+    c_lock: float | None = None
+    max_points: int = 6000
+    dedupe_cells: float = 8.0
+    explain_cells: float = 2.0
+    time_budget: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_int("rotations", self.rotations)
+        _check_int("start_grid", self.start_grid, minimum=0)
+        _check_int("walkers_per_angle", self.walkers_per_angle)
+        _check_int("spectral_starts", self.spectral_starts, minimum=0)
+        _check_int("max_iterations", self.max_iterations)
+        _check_int("patience", self.patience)
+        _check_float("tolerance", self.tolerance, allow_zero=True)
+        _check_int("restarts", self.restarts, minimum=0)
+        if _check_float("worse_acceptance", self.worse_acceptance, allow_zero=True) >= 1:
+            raise ParameterError(f"worse_acceptance must be below 1, got {self.worse_acceptance!r}")
+        _check_int("window", self.window, minimum=2)
+        _check_float("rotation_step_deg", self.rotation_step_deg)
+        if self.translation_step is not None:
+            _check_float("translation_step", self.translation_step)
+        _check_float("min_rotation_step_deg", self.min_rotation_step_deg)
+        _check_float("min_translation_step", self.min_translation_step)
+        _check_float("lock_weight", self.lock_weight, allow_zero=True)
+        if self.c_lock is not None:
+            _check_float("c_lock", self.c_lock, allow_zero=True)
+        _check_int("max_points", self.max_points, minimum=16)
+        _check_float("dedupe_cells", self.dedupe_cells, allow_zero=True)
+        _check_float("explain_cells", self.explain_cells, allow_zero=True)
+        if self.time_budget is not None:
+            _check_float("time_budget", self.time_budget)
+
+
+_OPTION_NAMES = frozenset(f.name for f in fields(WalkOptions))
+
+
+@dataclass(frozen=True)
+class WalkProgress:
+    """State of a running walk, as passed to the registrar's ``progress`` callback.
+
+    Attributes
+    ----------
+    call : int
+        Number of :meth:`RandomWalkRegistrar.candidates` calls so far (1 for the first).
+    step, max_steps : int
+        Lockstep steps done, and the iteration budget.
+    walkers, active : int
+        Walkers in all, and those still walking.
+    best_delta : float
+        Lowest Delta found so far (on the sampled cells).
+    best_acceptance : float
+        Acceptance indicator of that state.
+    evaluations : int
+        Evaluations of Delta so far.
+    seconds : float
+        Wall-clock time of this registration so far.
+    done : bool
+        True for the last report of a registration.
+    """
+
+    call: int
+    step: int
+    max_steps: int
+    walkers: int
+    active: int
+    best_delta: float
+    best_acceptance: float
+    evaluations: int
+    seconds: float
+    done: bool
+
+
+ProgressCallback = Callable[[WalkProgress], None]
+
+
+# --------------------------------------------------------------------------------------------
 # The registrar
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class _PreparedReference:
     """What :meth:`RandomWalkRegistrar.prepare_reference` computes once."""
 
-    tables: MapTables
+    full: MapTables  # every cell
+    tables: MapTables  # the walk's sample
     centroid: NDArray[np.float64]
     known_box: tuple[tuple[float, float], tuple[float, float]]
+    spectral: Any  # the iFMI prepared reference, or None
 
 
-def _positive_int(name: str, value: Any, minimum: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _positive_float(name: str, value: Any, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ParameterError(
-            f"{name} must be a {'non-negative' if allow_zero else 'positive'} number, got {value!r}"
-        )
-    return v
+#: iFMI options of the spectral start poses: the wider search the recursion falls back on for
+#: iFMI itself (a remainder mixes partitions, so many rotation and translation peaks are
+#: worth a walker; the walk, not the peak height, decides between them).
+_SPECTRAL_OPTIONS: dict[str, Any] = {
+    "rotation_peaks": 6,
+    "peak_ratio": 0.05,
+    "translation_peaks": 3,
+}
 
 
 class RandomWalkRegistrar:
@@ -258,47 +483,18 @@ class RandomWalkRegistrar:
     ----------
     seed : int, optional
         Seed of the walk. ``None`` uses :data:`DEFAULT_SEED`, so that results are always
-        repeatable; the generator is created afresh inside every :meth:`candidates` call, so
-        the same input gives the same answer bit for bit.
-    rotations : int
-        Number of start angles, evenly spread over 360 degrees (default 12).
-    start_grid : int
-        Start positions tried per angle: the centroid-aligned one, the moving map's own
-        position, and a ``start_grid x start_grid`` lattice over the reference's known cells
-        (default 6; 0 for the first two only).
-    walkers_per_angle : int
-        The best this many start positions per angle (lowest Delta) each start a walker
-        (default 2): ``rotations * walkers_per_angle`` walkers in all.
-    max_iterations : int
-        Steps per walker at most (default 1500).
-    patience : int
-        A walker stops after this many steps without improving its best Delta by more than
-        ``tolerance`` (default 100).
-    tolerance : float
-        Smallest improvement of Delta that counts for the stopping rule (default 0.01).
-    worse_acceptance : float
-        Probability of accepting a step that makes Delta worse (default 0.05).
-    window : int
-        Number of recent accepted increments that the step distribution's mean and covariance
-        are estimated from (default 8).
-    rotation_step_deg : float
-        Standard deviation of the rotation steps before any step was accepted (default 4).
-    translation_step : float, optional
-        Same for translation, in cells; default 2 % of the reference's larger side (>= 2).
-    min_rotation_step_deg, min_translation_step : float
-        Floors added to the adapted standard deviations, so that the walk never freezes
-        (defaults 0.1 degree and 0.3 cell).
-    lock_weight : float
-        Default ``c_lock = lock_weight / N`` (``N`` known moving cells); default 10.
-    c_lock : float, optional
-        Explicit weight of ``disagree - agree`` per cell, overriding ``lock_weight``.
-    max_points : int
-        At most this many occupied and this many free cells of each map take part in an
-        evaluation, evenly spaced in row-major order (default 20000; the counts are scaled
-        back to cells).
-    dedupe_cells : float
-        Walkers' results that move every corner of the moving map by less than this many
-        cells are one candidate (default 3).
+        repeatable; a fresh ``numpy.random.default_rng(seed)`` stream is created inside
+        every :meth:`candidates` call, so the same input gives the same answer bit for bit.
+    options : WalkOptions, optional
+        The walk's settings (default ``WalkOptions()``).
+    progress : callable, optional
+        Called with a :class:`WalkProgress` every ``progress_every`` steps and at the end
+        of each registration (for a progress display; it must not raise).
+    progress_every : int
+        Steps between progress reports (default 10).
+    **overrides
+        Fields of :class:`WalkOptions`, overriding those of ``options`` (so that
+        ``make_registrar("random-walk", rotations=8)`` and ``registration_options`` work).
 
     Raises
     ------
@@ -314,63 +510,34 @@ class RandomWalkRegistrar:
         self,
         *,
         seed: int | None = None,
-        rotations: int = 12,
-        start_grid: int = 6,
-        walkers_per_angle: int = 2,
-        max_iterations: int = 1500,
-        patience: int = 100,
-        tolerance: float = 0.01,
-        worse_acceptance: float = 0.05,
-        window: int = 8,
-        rotation_step_deg: float = 4.0,
-        translation_step: float | None = None,
-        min_rotation_step_deg: float = 0.1,
-        min_translation_step: float = 0.3,
-        lock_weight: float = 10.0,
-        c_lock: float | None = None,
-        max_points: int = 20000,
-        dedupe_cells: float = 3.0,
-        **unknown: Any,
+        options: WalkOptions | None = None,
+        progress: ProgressCallback | None = None,
+        progress_every: int = 10,
+        **overrides: Any,
     ) -> None:
+        unknown = sorted(set(overrides) - _OPTION_NAMES)
         if unknown:
-            raise ParameterError(f"unknown option(s) for random-walk: {', '.join(sorted(unknown))}")
+            raise ParameterError(f"unknown option(s) for random-walk: {', '.join(unknown)}")
         if seed is None:
             seed = DEFAULT_SEED
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise ParameterError(f"seed must be a non-negative integer or None, got {seed!r}")
+        if options is not None and not isinstance(options, WalkOptions):
+            raise ParameterError(f"options must be a WalkOptions, got {type(options).__name__}")
+        if progress is not None and not callable(progress):
+            raise ParameterError("progress must be callable")
         self.seed = int(seed)
-        self.rotations = _positive_int("rotations", rotations)
-        self.start_grid = _positive_int("start_grid", start_grid, minimum=0)
-        self.walkers_per_angle = _positive_int("walkers_per_angle", walkers_per_angle)
-        self.max_iterations = _positive_int("max_iterations", max_iterations)
-        self.patience = _positive_int("patience", patience)
-        self.tolerance = _positive_float("tolerance", tolerance, allow_zero=True)
-        p = _positive_float("worse_acceptance", worse_acceptance, allow_zero=True)
-        if p >= 1:
-            raise ParameterError(f"worse_acceptance must be below 1, got {worse_acceptance!r}")
-        self.worse_acceptance = p
-        self.window = _positive_int("window", window, minimum=2)
-        self.rotation_step = math.radians(_positive_float("rotation_step_deg", rotation_step_deg))
-        self.translation_step = (
-            None
-            if translation_step is None
-            else _positive_float("translation_step", translation_step)
-        )
-        self.min_rotation_step = math.radians(
-            _positive_float("min_rotation_step_deg", min_rotation_step_deg)
-        )
-        self.min_translation_step = _positive_float("min_translation_step", min_translation_step)
-        self.lock_weight = _positive_float("lock_weight", lock_weight, allow_zero=True)
-        self.c_lock = None if c_lock is None else _positive_float("c_lock", c_lock, allow_zero=True)
-        self.max_points = _positive_int("max_points", max_points, minimum=16)
-        self.dedupe_cells = _positive_float("dedupe_cells", dedupe_cells, allow_zero=True)
+        self.options = replace(options or WalkOptions(), **overrides)
+        self.progress = progress
+        self.progress_every = _check_int("progress_every", progress_every)
+        self._calls = 0
 
     def __repr__(self) -> str:
-        return f"RandomWalkRegistrar(seed={self.seed}, rotations={self.rotations})"
+        return f"RandomWalkRegistrar(seed={self.seed}, options={self.options!r})"
 
     # -- Registrar protocol -----------------------------------------------------------------
     def prepare_reference(self, reference_states: NDArray[np.int8]) -> _PreparedReference:
-        """Distance maps and sampled cells of the reference, computed once.
+        """Distance maps and sampled cells of the reference (and its spectra), computed once.
 
         Raises
         ------
@@ -378,12 +545,24 @@ class RandomWalkRegistrar:
             If the reference is not a valid state grid or has no occupied cell.
         """
         ref = _states(reference_states, "reference")
-        tables = build_tables(ref, self.max_points)
-        if tables.counts[0] == 0:
+        full = build_tables(ref, ref.size)
+        if full.counts[0] == 0:
             raise MapError("the reference map has no occupied cell")
         rows, cols = np.nonzero(ref >= 0)
         box = ((float(cols.min()), float(rows.min())), (float(cols.max()), float(rows.max())))
-        return _PreparedReference(tables=tables, centroid=tables.centroid, known_box=box)
+        spectral = None
+        if self.options.spectral_starts:
+            from .ifmi import IFMIRegistrar
+
+            ifmi = IFMIRegistrar(**_SPECTRAL_OPTIONS)
+            spectral = (ifmi, ifmi.prepare_reference(ref))
+        return _PreparedReference(
+            full=full,
+            tables=subsample_tables(full, self.options.max_points),
+            centroid=full.centroid,
+            known_box=box,
+            spectral=spectral,
+        )
 
     def candidates(
         self, prepared_reference: Any, moving_states: NDArray[np.int8], max_candidates: int
@@ -402,8 +581,11 @@ class RandomWalkRegistrar:
         Returns
         -------
         list of Candidate
-            Distinct final poses of the walkers, lowest Delta first; ``confidence`` is the
-            acceptance indicator ``agree / (agree + disagree)`` of the transform.
+            Distinct states of the walk (each walker's lowest-Delta state and the one that
+            explained the most occupied cells), ranked greedily by the occupied cells they
+            explain that better-ranked ones do not, ties by Delta on every cell;
+            ``confidence`` and ``acceptance`` are the acceptance indicator
+            ``agree / (agree + disagree)`` of the transform.
 
         Raises
         ------
@@ -412,17 +594,26 @@ class RandomWalkRegistrar:
         ParameterError
             If ``max_candidates < 1`` or ``prepared_reference`` is not from this class.
         """
+        started = time.perf_counter()
         if not isinstance(prepared_reference, _PreparedReference):
             raise ParameterError(
                 "prepared_reference must come from RandomWalkRegistrar.prepare_reference"
             )
-        max_candidates = _positive_int("max_candidates", max_candidates)
+        max_candidates = _check_int("max_candidates", max_candidates)
         mov = _states(moving_states, "moving")
-        moving = build_tables(mov, self.max_points)
-        if moving.n_known == 0:
+        full = build_tables(mov, mov.size)
+        if full.n_known == 0:
             raise MapError("the moving map has no occupied or free cell")
-        walk = _walk(self, prepared_reference, moving)
-        return _to_candidates(walk, moving, self.dedupe_cells, max_candidates)
+        self._calls += 1
+        hints = _spectral_hints(prepared_reference, mov, self.options.spectral_starts)
+        walk = _walk(
+            self,
+            prepared_reference,
+            subsample_tables(full, self.options.max_points),
+            hints,
+            started,
+        )
+        return _to_candidates(walk, prepared_reference, full, self.options, max_candidates)
 
     def register(
         self, reference_states: NDArray[np.int8], moving_states: NDArray[np.int8]
@@ -431,17 +622,33 @@ class RandomWalkRegistrar:
         return self.candidates(self.prepare_reference(reference_states), moving_states, 1)[0]
 
 
+def _spectral_hints(
+    prepared: _PreparedReference, moving: NDArray[np.int8], count: int
+) -> list[RigidTransform]:
+    """The iFMI hypotheses of the moving map (rigid part), or none."""
+    if not count or prepared.spectral is None or not np.any(moving == 1):
+        return []
+    registrar, spectral = prepared.spectral
+    try:
+        found = registrar.candidates(spectral, moving, count)
+    except MapError:  # pragma: no cover - guarded by the occupied check above
+        return []
+    return [RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty) for c in found]
+
+
 # --------------------------------------------------------------------------------------------
 # The adaptive random walk, all walkers in lockstep
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class _WalkResult:
     states: NDArray[np.float64]  # (W, 3) best (theta, ux, uy) per walker
-    delta: NDArray[np.float64]  # (W,)
-    acceptance: NDArray[np.float64]  # (W,)
+    delta: NDArray[np.float64]  # (W,) on the sampled cells
+    most: NDArray[np.float64]  # (W, 3) the state that explained the most cells, per walker
     pivot: NDArray[np.float64]  # moving centroid the rotation turns about
     evaluations: int
     steps: int
+    restarts: int
+    stopped_by_time: bool
 
 
 def _transform_arrays(
@@ -455,85 +662,155 @@ def _transform_arrays(
     return c, s, tx, ty
 
 
-def _walk(reg: RandomWalkRegistrar, prepared: _PreparedReference, moving: MapTables) -> _WalkResult:
+def _state_of(t: RigidTransform, pivot: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The walk's state ``(theta, ux, uy)`` of a rigid transform: ``u = t(pivot)``."""
+    u = t.apply(pivot[None])[0]
+    return np.array([math.remainder(t.rotation, 2 * math.pi), u[0], u[1]])
+
+
+def _walk(
+    reg: RandomWalkRegistrar,
+    prepared: _PreparedReference,
+    moving: MapTables,
+    hints: list[RigidTransform],
+    started: float,
+) -> _WalkResult:
+    opt = reg.options
     ref = prepared.tables
-    lock = _c_lock(reg.c_lock, reg.lock_weight, moving)
+    lock = _c_lock(opt.c_lock, opt.lock_weight, moving)
     pivot = moving.centroid
 
     def evaluate(st: NDArray[np.float64]) -> Any:
-        return score(ref, moving, *_transform_arrays(st, pivot), lock)
+        arrays = _transform_arrays(st, pivot)
+        return score(ref, moving, *arrays, lock, explain_cells=opt.explain_cells)
 
-    state = _start_poses(reg, prepared, pivot, evaluate)
+    grid = _start_poses(opt, prepared, pivot, evaluate)
+    starts = [grid] + ([np.array([_state_of(t, pivot) for t in hints])] if hints else [])
+    state = np.concatenate(starts)
     n_walkers = state.shape[0]
 
-    t_step = reg.translation_step
+    t_step = opt.translation_step
     if t_step is None:
         t_step = max(2.0, 0.02 * max(ref.shape))
-    sigma0 = np.diag([reg.rotation_step, t_step, t_step]) ** 2
-    floor = (
-        np.diag([reg.min_rotation_step, reg.min_translation_step, reg.min_translation_step]) ** 2
-    )
+    rot_step = math.radians(opt.rotation_step_deg)
+    sigma0 = np.diag([rot_step, t_step, t_step]) ** 2
+    rot_floor = math.radians(opt.min_rotation_step_deg)
+    floor = np.diag([rot_floor, opt.min_translation_step, opt.min_translation_step]) ** 2
     chol0 = np.linalg.cholesky(sigma0 + floor)
+    window = opt.window
 
     rng = np.random.default_rng(reg.seed)
-    current = evaluate(state).delta
+    first = evaluate(state)
+    current = first.delta.copy()
     best_state = state.copy()
     best = current.copy()
+    best_acc = first.acceptance.copy()
+    most_state = state.copy()  # the state that explained the most cells so far
+    most = first.explained.copy()
     mark = current.copy()  # best Delta when the walker last made progress (stopping rule)
-    evaluations = n_walkers
+    evaluations = opt.rotations * (2 + opt.start_grid**2) + n_walkers  # starts, then walkers
     since = np.zeros(n_walkers, dtype=np.int64)
+    restarts = np.zeros(n_walkers, dtype=np.int64)
     mean = np.zeros((n_walkers, 3))
     chol = np.tile(chol0, (n_walkers, 1, 1))
-    accepted = np.zeros((n_walkers, reg.window, 3))  # last accepted increments
+    accepted = np.zeros((n_walkers, window, 3))  # last accepted increments
     n_accepted = np.zeros(n_walkers, dtype=np.int64)
-    recent = np.zeros((n_walkers, reg.window, 3))  # last moves, 0 for a rejected proposal
+    recent = np.zeros((n_walkers, window, 3))  # last moves, 0 for a rejected proposal
     n_recent = np.zeros(n_walkers, dtype=np.int64)
     active = np.ones(n_walkers, dtype=bool)
     steps = 0
-    while active.any() and steps < reg.max_iterations:
+    by_time = False
+
+    def report(done: bool) -> None:
+        if reg.progress is None:
+            return
+        i = int(np.argmin(best))
+        reg.progress(
+            WalkProgress(
+                call=reg._calls,
+                step=steps,
+                max_steps=opt.max_iterations,
+                walkers=n_walkers,
+                active=int(np.count_nonzero(active)),
+                best_delta=float(best[i]),
+                best_acceptance=float(best_acc[i]),
+                evaluations=evaluations,
+                seconds=time.perf_counter() - started,
+                done=done,
+            )
+        )
+
+    report(False)
+    while active.any() and steps < opt.max_iterations:
+        if opt.time_budget is not None and time.perf_counter() - started > opt.time_budget:
+            by_time = True
+            break
         steps += 1
+        # Draws for every walker, active or not: the stream does not depend on who is done.
         z = rng.standard_normal((n_walkers, 3))
         u = rng.random((n_walkers,))
         idx = np.flatnonzero(active)
         step = mean[idx] + np.einsum("wij,wj->wi", chol[idx], z[idx])
         proposal = state[idx] + step
         proposal[:, 0] = np.angle(np.exp(1j * proposal[:, 0]))  # keep theta in (-pi, pi]
-        value = evaluate(proposal).delta
+        scored = evaluate(proposal)
+        value = scored.delta
         evaluations += idx.size
 
         improved = value < best[idx]
-        progress = value < mark[idx] - reg.tolerance
+        progress = value < mark[idx] - opt.tolerance
         best[idx[improved]] = value[improved]
         best_state[idx[improved]] = proposal[improved]
+        best_acc[idx[improved]] = scored.acceptance[improved]
+        more = scored.explained > most[idx]
+        most[idx[more]] = scored.explained[more]
+        most_state[idx[more]] = proposal[more]
         mark[idx[progress]] = value[progress]
         since[idx] = np.where(progress, 0, since[idx] + 1)
 
-        accept = (value < current[idx]) | (u[idx] < reg.worse_acceptance)
+        accept = (value < current[idx]) | (u[idx] < opt.worse_acceptance)
         acc = idx[accept]
         state[acc] = proposal[accept]
         current[acc] = value[accept]
-        accepted[acc, n_accepted[acc] % reg.window] = step[accept]
+        accepted[acc, n_accepted[acc] % window] = step[accept]
         n_accepted[acc] += 1
-        recent[idx, n_recent[idx] % reg.window] = np.where(accept[:, None], step, 0.0)
+        recent[idx, n_recent[idx] % window] = np.where(accept[:, None], step, 0.0)
         n_recent[idx] += 1
         mean[idx], chol[idx] = _adapt(
             accepted[idx], n_accepted[idx], recent[idx], n_recent[idx], chol0, floor
         )
-        active &= since < reg.patience
-
-    final = evaluate(best_state)
+        # Stalled walkers restart from their best state with the initial step distribution,
+        # or stop when they have used up their restarts.
+        stalled = active & (since >= opt.patience)
+        again = stalled & (restarts < opt.restarts)
+        active &= ~(stalled & ~again)
+        if again.any():
+            state[again] = best_state[again]
+            current[again] = best[again]
+            mark[again] = best[again]
+            since[again] = 0
+            restarts[again] += 1
+            mean[again] = 0.0
+            chol[again] = chol0
+            n_accepted[again] = 0
+            n_recent[again] = 0
+        if steps % reg.progress_every == 0:
+            report(False)
+    report(True)
     return _WalkResult(
         states=best_state,
-        delta=final.delta,
-        acceptance=final.acceptance,
+        delta=best,
+        most=most_state,
         pivot=pivot,
-        evaluations=evaluations + n_walkers,
+        evaluations=evaluations,
         steps=steps,
+        restarts=int(restarts.sum()),
+        stopped_by_time=by_time,
     )
 
 
 def _start_poses(
-    reg: RandomWalkRegistrar,
+    opt: WalkOptions,
     prepared: _PreparedReference,
     pivot: NDArray[np.float64],
     evaluate: Any,
@@ -545,21 +822,22 @@ def _start_poses(
     a ``start_grid x start_grid`` lattice over the bounding box of the reference's known
     cells; the ``walkers_per_angle`` lowest-Delta positions start a walker each.
     """
-    angles = 2.0 * math.pi * np.arange(reg.rotations) / reg.rotations
+    angles = 2.0 * math.pi * np.arange(opt.rotations) / opt.rotations
+    angles = np.angle(np.exp(1j * angles))
     positions = [prepared.centroid, pivot]
-    if reg.start_grid:
+    if opt.start_grid:
         (x0, y0), (x1, y1) = prepared.known_box
-        frac = (np.arange(reg.start_grid) + 0.5) / reg.start_grid
+        frac = (np.arange(opt.start_grid) + 0.5) / opt.start_grid
         gx, gy = np.meshgrid(x0 + frac * (x1 - x0), y0 + frac * (y1 - y0))
         positions.extend(np.column_stack([gx.ravel(), gy.ravel()]))
     pos = np.array(positions)
     n_pos = pos.shape[0]
-    grid = np.column_stack([np.repeat(angles, n_pos), np.tile(pos, (reg.rotations, 1))])
-    values = evaluate(grid).delta.reshape(reg.rotations, n_pos)
-    keep = min(reg.walkers_per_angle, n_pos)
+    grid = np.column_stack([np.repeat(angles, n_pos), np.tile(pos, (opt.rotations, 1))])
+    values = evaluate(grid).delta.reshape(opt.rotations, n_pos)
+    keep = min(opt.walkers_per_angle, n_pos)
     # Stable order: by Delta, ties by position index.
     order = np.argsort(values, axis=1, kind="stable")[:, :keep]
-    chosen = order + (np.arange(reg.rotations) * n_pos)[:, None]
+    chosen = order + (np.arange(opt.rotations) * n_pos)[:, None]
     return grid[chosen.ravel()].copy()
 
 
@@ -593,28 +871,130 @@ def _adapt(
     return mean, chol
 
 
+def _corners(moving: MapTables) -> NDArray[np.float64]:
+    """Corners of the bounding box of the moving map's occupied cells (of all cells if none)."""
+    pts = moving.points[0] if moving.points[0].shape[1] else moving.points[1]
+    if not pts.shape[1]:  # pragma: no cover - candidates() rejects a map without known cells
+        rows, cols = moving.shape
+        return np.array([[0.0, 0.0], [cols - 1.0, rows - 1.0]])
+    x0, y0 = (float(v) for v in pts[:2].min(axis=1))
+    x1, y1 = (float(v) for v in pts[:2].max(axis=1))
+    return np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]])
+
+
 def _to_candidates(
-    walk: _WalkResult, moving: MapTables, dedupe_cells: float, max_candidates: int
+    walk: _WalkResult,
+    prepared: _PreparedReference,
+    moving_full: MapTables,
+    opt: WalkOptions,
+    max_candidates: int,
 ) -> list[Candidate]:
-    """Walkers' best poses, lowest Delta first, near-duplicates dropped."""
-    rows, cols = moving.shape
-    corners = np.array([[0.0, 0.0], [cols - 1.0, 0.0], [0.0, rows - 1.0], [cols - 1.0, rows - 1.0]])
-    c, s, tx, ty = _transform_arrays(walk.states, walk.pivot)
-    order = np.lexsort((np.arange(walk.delta.size), walk.delta))
-    kept: list[int] = []
+    """The walkers' optima that together explain the most, near-duplicates dropped.
+
+    Each walker offers its lowest-Delta state and the state that explained the most
+    occupied cells along its walk. They are ranked greedily: first the one that explains
+    the most occupied moving cells, then, each time, the one that explains the most cells
+    that those before it did not (ties by Delta on every cell). The remainder of a broken
+    map has one good alignment per partition; Delta, averaged over all of them, is not
+    always lowest at the one that explains the most, and near variants of the best
+    alignment explain little that it does not.
+    """
+    corners = _corners(moving_full)
+    states = np.concatenate([walk.states, walk.most])
+    c, s, tx, ty = _transform_arrays(states, walk.pivot)
+    lock = _c_lock(opt.c_lock, opt.lock_weight, moving_full)
+    final = score(prepared.full, moving_full, c, s, tx, ty, lock, explain_cells=opt.explain_cells)
+    occupied = subsample_tables(moving_full, opt.max_points).points[0]
+    if occupied.shape[1]:
+        hits = explained_cells(prepared.full, occupied, c, s, tx, ty, opt.explain_cells)
+    else:  # free cells only: rank by Delta
+        hits = np.zeros((states.shape[0], 0), dtype=bool)
+    covered = np.zeros(hits.shape[1], dtype=bool)
+    free = np.ones(states.shape[0], dtype=bool)  # not yet taken or dropped
+    kept: list[RigidTransform] = []
     out: list[Candidate] = []
-    for i in order:
+    while free.any() and len(out) < max_candidates:
+        gain = np.count_nonzero(hits & ~covered, axis=1)
+        pool = np.flatnonzero(free)
+        # most new cells, then lowest Delta, then walker order (deterministic)
+        i = int(pool[np.lexsort((pool, final.delta[pool], -gain[pool]))[0]])
+        free[i] = False
         t = RigidTransform(math.atan2(s[i], c[i]), tx[i], ty[i])
-        if any(
-            float(
-                RigidTransform(math.atan2(s[j], c[j]), tx[j], ty[j]).displacement(t, corners).max()
-            )
-            < dedupe_cells
-            for j in kept
-        ):
+        if any(float(k.displacement(t, corners).max()) < opt.dedupe_cells for k in kept):
             continue
-        kept.append(int(i))
-        out.append(Candidate(transform=t, confidence=float(np.clip(walk.acceptance[i], 0.0, 1.0))))
-        if len(out) >= max_candidates:
-            break
+        kept.append(t)
+        covered |= hits[i]
+        omega = float(np.clip(final.acceptance[i], 0.0, 1.0))
+        out.append(Candidate(transform=t, confidence=omega, acceptance=omega))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# The acceptance indicator of a partition
+# --------------------------------------------------------------------------------------------
+def partition_acceptance(
+    map_states: NDArray[np.int8],
+    reference_states: NDArray[np.int8],
+    labels: NDArray[np.integer[Any]],
+    transforms: list[RigidTransform] | tuple[RigidTransform, ...],
+) -> list[float | None]:
+    """Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` per partition.
+
+    A partition's cells are its occupied cells (``labels == i``) and the free cells whose
+    nearest labelled occupied cell (Manhattan) belongs to it. Each is moved by the
+    partition's transform onto the nearest reference cell; ``agree`` counts those landing on
+    a known reference cell of the same state, ``disagree`` on one of the other state.
+
+    Parameters
+    ----------
+    map_states, reference_states : ndarray of int8
+        Cell states (1 occupied, 0 free, -1 unknown) of the map and the reference.
+    labels : ndarray of int
+        Same shape as the map: partition index of each occupied cell, negative elsewhere.
+    transforms : sequence of RigidTransform
+        Transform (map cells -> reference cells) of partition ``i`` at position ``i``.
+
+    Returns
+    -------
+    list of float or None
+        One value in [0, 1] per partition, ``None`` when none of its cells lands on known
+        reference ground.
+    """
+    import cv2
+
+    mp = np.asarray(map_states)
+    ref = np.asarray(reference_states)
+    lab = np.asarray(labels)
+    if not transforms:
+        return []
+    labelled = lab >= 0
+    owner = np.where(labelled, lab, -1).astype(np.int64)
+    free = mp == 0
+    if labelled.any() and free.any():
+        # The nearest labelled occupied cell of every cell: OpenCV's labelled two-pass L1
+        # distance transform, one label per zero pixel.
+        _, nearest = cv2.distanceTransformWithLabels(
+            np.where(labelled, 0, 1).astype(np.uint8),
+            cv2.DIST_L1,
+            3,
+            labelType=cv2.DIST_LABEL_PIXEL,
+        )
+        by_label = np.full(int(nearest.max()) + 1, -1, dtype=np.int64)
+        by_label[nearest[labelled]] = lab[labelled]
+        owner = np.where(free, by_label[nearest], owner)
+    out: list[float | None] = []
+    h, w = ref.shape
+    for i, t in enumerate(transforms):
+        rows, cols = np.nonzero(owner == i)
+        if rows.size == 0:
+            out.append(None)
+            continue
+        moved = np.rint(t.apply(np.column_stack([cols, rows]).astype(np.float64))).astype(np.int64)
+        inside = (moved[:, 0] >= 0) & (moved[:, 0] < w) & (moved[:, 1] >= 0) & (moved[:, 1] < h)
+        landed = np.full(rows.size, -1, dtype=np.int8)
+        landed[inside] = ref[moved[inside, 1], moved[inside, 0]]
+        known = landed >= 0
+        agree = int(np.count_nonzero(known & (landed == mp[rows, cols])))
+        total = int(np.count_nonzero(known))
+        out.append(agree / total if total else None)
     return out
