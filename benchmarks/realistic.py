@@ -22,7 +22,7 @@ the source's CRC-32, the seed, the degree and the attempt number):
    5 % minimum share, every partition's cells move by at least 0.5 m on average between
    its transform and every other partition's (clearly off), and, in the final map, every
    partition still holds at least 5 % of the occupied cells; otherwise the case is redrawn
-   (attempt 1, 2, ... up to 40).
+   (attempt 1, 2, ... up to 100).
 5. **The map in its own frame**: the bumped run drawn in a frame turned by U[0, 2 pi) and
    shifted by U[-30, 30] m per axis (the SLAM run started anywhere;
    :func:`brokenness.simulation.map_in_frame`), on a grid cropped to what it saw, three-state
@@ -126,7 +126,7 @@ MIN_OFF_M = 0.5  # mean displacement between any two partitions' transforms, met
 BUMP_RADIUS = 1.0  # d ~ U[0, r], metres
 PURE_SHIFT = 0.25  # chance that a bump is a pure shift
 FRAME_SHIFT = 30.0  # own frame: shift ~ U[-30, 30] m per axis
-MAX_ATTEMPTS = 40
+MAX_ATTEMPTS = 100
 TRUE_CELLS = 3.0  # "all partitions true": median displacement within 3 reference cells
 
 
@@ -323,13 +323,16 @@ class Drawn:
         return [frame_truth(m, r, e, self.frame) for e in self.errors]
 
 
-def draw_case(case: Case) -> Drawn | None:
-    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted."""
+def draw_case(case: Case, rejected: list[str] | None = None) -> Drawn | None:
+    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted.
+
+    ``rejected``, when given, receives why each rejected draw was rejected.
+    """
     prep = _prepare(case.source, case.seed)
     ref_run, index = _true_reference(case.source, case.seed, case.reference_resolution)
     run = prep.run
     n_scans = len(run.true_poses)
-    why: list[str] = []
+    why: list[str] = [] if rejected is None else rejected
     for attempt in range(MAX_ATTEMPTS):
         bumps = _bumps(case, n_scans, attempt)
         broken, expected, parts, labels0, judged, bp = broken_map_from_run(
@@ -389,13 +392,23 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
     if truth_path.is_file():
         old = json.loads(truth_path.read_text())
         if old.get("generator_version") == GENERATOR_VERSION and old.get("case") == asdict(case):
-            return folder if old.get("ok", True) else None
-    drawn = draw_case(case)
+            if old.get("ok", True):
+                return folder
+            if old.get("max_attempts", 0) >= MAX_ATTEMPTS:
+                return None
+    rejected: list[str] = []
+    drawn = draw_case(case, rejected)
     folder.mkdir(parents=True, exist_ok=True)
     if drawn is None:
         truth_path.write_text(
             json.dumps(
-                {"generator_version": GENERATOR_VERSION, "case": asdict(case), "ok": False},
+                {
+                    "generator_version": GENERATOR_VERSION,
+                    "case": asdict(case),
+                    "ok": False,
+                    "max_attempts": MAX_ATTEMPTS,
+                    "rejected": rejected,
+                },
                 indent=1,
             )
         )
