@@ -44,6 +44,10 @@ partition's transform), and the compute time. Tables per degree for real logs an
 buildings; per-case rows in ``benchmarks/results/realistic.json`` (``--tables-from`` redoes
 the tables from such a file).
 
+The negative controls of ``benchmarks/negative_controls.py`` (its quick subset with
+``--quick``) are run too, after the cases, and their false claims counted in one line
+(``--no-controls`` skips them).
+
 Run: ``python benchmarks/realistic.py --quick --workers 1`` (25 cases: Orebro, Intel and
 Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full set
 ``python benchmarks/realistic.py --workers 2`` (8 logs x 9 degrees + 54 simulated cases);
@@ -583,12 +587,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--degrees", type=str, default=None, help="e.g. 0,3,8")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per log (6x simulated)")
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
-    ap.add_argument("--out", type=Path, default=RESULTS / "realistic.json")
+    ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
+    ap.add_argument(
+        "--no-controls",
+        action="store_true",
+        help="skip the negative controls (negative_controls.py; its quick subset with --quick)",
+    )
     args = ap.parse_args(argv)
     if args.tables_from is not None:
-        print(tables(json.loads(args.tables_from.read_text())["rows"]))
+        saved = json.loads(args.tables_from.read_text())
+        print(tables(saved["rows"]))
+        if saved.get("controls"):
+            print(_controls_line(saved["controls"]))
         return 0
+    if args.out is None:
+        args.out = RESULTS / ("realistic_quick.json" if args.quick else "realistic.json")
     warnings.simplefilter("ignore")
     degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
     logs = tuple(args.logs.split(",")) if args.logs else None
@@ -606,12 +620,23 @@ def main(argv: list[str] | None = None) -> int:
         f"generation {gen_seconds:.0f} s (cache {CACHE.relative_to(ROOT)})",
         flush=True,
     )
+    control_jobs: list[tuple[str, str, str, str, str]] = []
+    if not args.no_controls:
+        import negative_controls as nc
+        from cases import negative_control_pairs, save_control_maps
+
+        pairs = negative_control_pairs(quick=args.quick)
+        paths = save_control_maps(sorted({n for p in pairs for n in p}), nc.CACHE)
+        control_jobs = [("control", a, b, str(paths[a]), str(paths[b])) for a, b in pairs]
     # phase 2: compute (nothing else running in the pool)
     t1 = time.perf_counter()
     with ProcessPoolExecutor(workers) as pool:
         rows = list(pool.map(_evaluate_job, folders))
-    compute_wall = time.perf_counter() - t1
+        compute_wall = time.perf_counter() - t1
+        controls = list(pool.map(_control_job, control_jobs))
     print(tables(rows))
+    if controls:
+        print(_controls_line(controls))
     summary = {
         "cases": len(cases),
         "not_drawn": failed,
@@ -626,10 +651,32 @@ def main(argv: list[str] | None = None) -> int:
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(
-        json.dumps({"summary": summary, "rows": rows}, indent=1, allow_nan=False) + "\n"
+        json.dumps(
+            {"summary": summary, "rows": rows, "controls": controls}, indent=1, allow_nan=False
+        )
+        + "\n"
     )
     print(f"results: {args.out}")
     return 0
+
+
+def _control_job(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
+    import negative_controls as nc
+
+    return nc.run_pair(job)
+
+
+def _controls_line(controls: list[dict[str, Any]]) -> str:
+    """One line: false claims (degrees given) on the negative controls."""
+    done = [r for r in controls if "measured" in r]
+    false = [r for r in done if r["measured"]]
+    worst = sorted(false, key=lambda r: -(r["degree"] or 0))[:3]
+    return (
+        f"\nnegative controls: {len(false)} false claims of {len(done)} "
+        f"(errors {len(controls) - len(done)}); highest: "
+        + (", ".join(f"{r['pair']} {r['degree']}" for r in worst) or "-")
+        + " (details: benchmarks/negative_controls.py)"
+    )
 
 
 if __name__ == "__main__":
