@@ -52,7 +52,8 @@ Run: ``python benchmarks/realistic.py --quick --workers 1`` (25 cases: Orebro, I
 Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full set
 ``python benchmarks/realistic.py --workers 2`` (8 logs x 9 degrees + 54 simulated cases);
 ``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree),
-``--logs intel,aces``.
+``--logs intel,aces``; ``--compare earlier.json`` lists the cases and controls whose outcome
+changed since an earlier run.
 """
 
 from __future__ import annotations
@@ -590,6 +591,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
     ap.add_argument(
+        "--compare", type=Path, default=None, help="list the cases that changed since this run"
+    )
+    ap.add_argument(
         "--no-controls",
         action="store_true",
         help="skip the negative controls (negative_controls.py; its quick subset with --quick)",
@@ -598,6 +602,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.tables_from is not None:
         saved = json.loads(args.tables_from.read_text())
         print(tables(saved["rows"]))
+        print(failures(saved["rows"]))
         if saved.get("controls"):
             print(_controls_line(saved["controls"]))
         return 0
@@ -635,8 +640,11 @@ def main(argv: list[str] | None = None) -> int:
         compute_wall = time.perf_counter() - t1
         controls = list(pool.map(_control_job, control_jobs))
     print(tables(rows))
+    print(failures(rows))
     if controls:
         print(_controls_line(controls))
+    if args.compare is not None:
+        print(compare(json.loads(args.compare.read_text()), rows, controls))
     summary = {
         "cases": len(cases),
         "not_drawn": failed,
@@ -658,6 +666,42 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(f"results: {args.out}")
     return 0
+
+
+def _outcome(r: dict[str, Any]) -> str:
+    if "error" in r:
+        return "error"
+    if not r["measured"]:
+        return "not measured"
+    return f"{r['degree']}{' (all true)' if r['all_true'] else ''}"
+
+
+def failures(rows: list[dict[str, Any]]) -> str:
+    """The cases whose partitions are not all true: ``case: expected -> found``."""
+    bad = [r for r in rows if not r.get("all_true")]
+    items = [f"{r['case']}: {r['expected_degree']} -> {_outcome(r)}" for r in bad]
+    return f"\nnot all true ({len(bad)}): " + ("; ".join(items) or "-")
+
+
+def compare(old: dict[str, Any], rows: list[dict[str, Any]], controls: list[dict[str, Any]]) -> str:
+    """Cases (and controls) whose outcome differs from those of an earlier results file."""
+    before = {r["case"]: r for r in old.get("rows", [])}
+    lines = []
+    for r in rows:
+        o = before.get(r["case"])
+        if o is not None and _outcome(o) != _outcome(r):
+            lines.append(
+                f"{r['case']} (expected {r['expected_degree']}): {_outcome(o)} -> {_outcome(r)}"
+            )
+    ctl_before = {r["pair"]: r for r in old.get("controls", [])}
+    for r in controls:
+        o = ctl_before.get(r["pair"])
+        if o is not None and "measured" in o and "measured" in r:
+            a = "-" if not o["measured"] else o["degree"]
+            b = "-" if not r["measured"] else r["degree"]
+            if a != b:
+                lines.append(f"control {r['pair']}: {a} -> {b}")
+    return f"\nchanged since the earlier run ({len(lines)}):\n" + ("\n".join(lines) or "-")
 
 
 def _control_job(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
