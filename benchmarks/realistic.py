@@ -28,12 +28,12 @@ the source's CRC-32, the seed, the degree and the attempt number):
    :func:`brokenness.simulation.map_in_frame`), on a grid cropped to what it saw, three-state
    (free by ray casting, unknown elsewhere).
 6. **Files.** Map and reference are written as ROS YAML + PGM into
-   ``benchmarks/results/realistic/<case>/`` with ``truth.json`` (expected degree, bumps,
-   frame, each partition's transform *map cell -> reference cell of the files as loaded*,
-   i.e. with the own-frame turn and the resolution change, as a 3x3 matrix and in the
-   ``RigidTransform.to_dict`` form) and ``labels.npy`` (the partition of each occupied map
-   cell, -1 elsewhere). Cases are generated once and reused (regenerated when missing or of
-   another generator version).
+   ``benchmarks/results/realistic/<case>/`` (``--cache``) with ``truth.json`` (expected
+   degree, bumps, frame, each partition's transform *map cell -> reference cell of the
+   files as loaded*, i.e. with the own-frame turn and the resolution change, as a 3x3
+   matrix and in the ``RigidTransform.to_dict`` form) and ``labels.npy`` (the partition
+   of each occupied map cell, -1 elsewhere). Cases are generated once and reused
+   (regenerated when missing or of another generator version).
 
 Each case then runs through the public API as a user would:
 ``compute_brokenness(load_map(map.yaml), load_map(reference.yaml))``. Per case: the degree
@@ -61,6 +61,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import warnings
@@ -104,7 +105,9 @@ from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
 from brokenness.simulation.synthetic import broken_map_from_run  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
-CACHE = RESULTS / "realistic"
+#: Where cases are written (``--cache`` or ``BROKENNESS_BENCH_CACHE`` to share one between
+#: worktrees: the files depend only on the case and :data:`GENERATOR_VERSION`).
+CACHE = Path(os.environ.get("BROKENNESS_BENCH_CACHE", RESULTS / "realistic"))
 #: Bumped into the cache: cases made by another version are regenerated.
 GENERATOR_VERSION = 1
 
@@ -456,10 +459,11 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
     return folder
 
 
-def _generate_job(case: Case) -> tuple[Case, str | None, float]:
+def _generate_job(job: tuple[Case, str]) -> tuple[Case, str | None, float]:
     warnings.simplefilter("ignore")
+    case, cache = job
     t0 = time.perf_counter()
-    folder = generate(case)
+    folder = generate(case, Path(cache))
     return case, None if folder is None else str(folder), time.perf_counter() - t0
 
 
@@ -590,6 +594,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
     ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
+    ap.add_argument("--cache", type=Path, default=CACHE, help="folder of the generated cases")
     ap.add_argument(
         "--compare", type=Path, default=None, help="list the cases that changed since this run"
     )
@@ -616,13 +621,19 @@ def main(argv: list[str] | None = None) -> int:
     workers = max(1, args.workers)
     # phase 1: generate what is missing (cases of one source run in one process, in order)
     with ProcessPoolExecutor(workers) as pool:
-        made = list(pool.map(_generate_job, cases, chunksize=max(1, len(cases) // (4 * workers))))
+        made = list(
+            pool.map(
+                _generate_job,
+                [(c, str(args.cache)) for c in cases],
+                chunksize=max(1, len(cases) // (4 * workers)),
+            )
+        )
     gen_seconds = time.perf_counter() - start
     failed = [c.name for c, f, _ in made if f is None]
     folders = [f for _, f, _ in made if f is not None]
     print(
         f"{len(cases)} cases ({len(failed)} could not be drawn: {', '.join(failed) or '-'}); "
-        f"generation {gen_seconds:.0f} s (cache {CACHE.relative_to(ROOT)})",
+        f"generation {gen_seconds:.0f} s (cache {args.cache})",
         flush=True,
     )
     control_jobs: list[tuple[str, str, str, str, str]] = []
