@@ -51,7 +51,8 @@ The negative controls of ``benchmarks/negative_controls.py`` (its quick subset w
 Run: ``python benchmarks/realistic.py --quick --workers 1`` (25 cases: Orebro, Intel and
 Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full set
 ``python benchmarks/realistic.py --workers 2`` (8 logs x 9 degrees + 54 simulated cases);
-``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree),
+``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree;
+``--first-seed 1`` for a disjoint, held-out set),
 ``--logs intel,aces``; ``--compare earlier.json`` lists the cases and controls whose outcome
 changed since an earlier run.
 """
@@ -192,11 +193,15 @@ def case_list(
     degrees: tuple[int, ...] | None = None,
     seeds: int = 1,
     logs: tuple[str, ...] | None = None,
+    first_seed: int = 0,
 ) -> list[Case]:
     """The cases: ``seeds`` per available log and ``6 seeds`` simulated, for each degree.
 
-    ``quick``: Orebro, Intel and Freiburg-101 (those available) and simulated seeds 0 and 1,
-    at degrees 0, 2, 4, 6, 8 (unless ``degrees`` says otherwise).
+    Log seeds ``first_seed .. first_seed + seeds - 1``, simulated buildings
+    ``6 first_seed .. 6 (first_seed + seeds) - 1`` (``first_seed=1``: a set disjoint from
+    the default one, e.g. held out while tuning on it). ``quick``: Orebro, Intel and
+    Freiburg-101 (those available) and simulated seeds 0 and 1, at degrees 0, 2, 4, 6, 8
+    (unless ``degrees`` says otherwise).
     """
     available = [n for n in LOG_NAMES if _log_path(n) is not None]
     if quick:
@@ -207,8 +212,8 @@ def case_list(
     else:
         names = [n for n in (logs or LOG_NAMES) if n in available]
         degs = degrees or DEGREES
-        sim_seeds = tuple(range(SIM_PER_SEED * seeds))
-        log_seeds = tuple(range(seeds))
+        sim_seeds = tuple(range(SIM_PER_SEED * first_seed, SIM_PER_SEED * (first_seed + seeds)))
+        log_seeds = tuple(range(first_seed, first_seed + seeds))
     out = [make_case(n, d, s) for n in names for d in degs for s in log_seeds]
     if logs is None or SIM in logs:
         out += [make_case(SIM, d, s) for d in degs for s in sim_seeds]
@@ -591,6 +596,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--degrees", type=str, default=None, help="e.g. 0,3,8")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per log (6x simulated)")
+    ap.add_argument(
+        "--first-seed", type=int, default=0, help="1: a set disjoint from the default (held out)"
+    )
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
     ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
@@ -616,7 +624,9 @@ def main(argv: list[str] | None = None) -> int:
     warnings.simplefilter("ignore")
     degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
     logs = tuple(args.logs.split(",")) if args.logs else None
-    cases = case_list(quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs)
+    cases = case_list(
+        quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs, first_seed=args.first_seed
+    )
     start = time.perf_counter()
     workers = max(1, args.workers)
     # phase 1: generate what is missing (cases of one source run in one process, in order)
