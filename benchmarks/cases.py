@@ -29,7 +29,7 @@ places (both ways), plus every synthetic source against a few real and simulated
 references and a few real maps against the synthetic references, plus simulated buildings
 against each other. Pairs of one place (the two Willow maps, the Intel / ACES / CSAIL grids
 and the logs of the same buildings) are *not* controls: :func:`same_place_pairs` lists them,
-and they must be measured. ``quick=True`` picks a small deterministic subset.
+and they should be measured. ``quick=True`` picks a small deterministic subset.
 """
 
 from __future__ import annotations
@@ -60,6 +60,8 @@ BIG_SIDE = 800
 COARSE = 0.1
 #: Mapping range of the CARMEN-log maps (metres).
 LOG_RANGE = 15.0
+#: Version of the control maps (their cache folder); bump it when a source changes.
+CONTROLS_VERSION = 1
 
 #: Radish log name -> place (the Intel, ACES and CSAIL logs are the places of the PGM grids).
 LOG_PLACES = {
@@ -357,7 +359,7 @@ def same_place_pairs(sources: dict[str, ControlSource] | None = None) -> list[tu
     """``(map, reference)`` of two different real maps of one place (not controls).
 
     The Willow SLAM map against the Stage map (both ways), and each of the Intel / ACES /
-    CSAIL grids against the map of the log of the same building (both ways). These must be
+    CSAIL grids against the map of the log of the same building (both ways). These should be
     measured (their degree is not known).
     """
     sources = control_sources() if sources is None else sources
@@ -371,11 +373,13 @@ def save_control_maps(
     """Write the maps of ``names`` as ROS YAML + PGM into ``cache`` (when missing).
 
     Returns ``name -> YAML path``. The files are what the benchmark loads back with
-    :func:`brokenness.load_map`, so every map goes through the file format a user has.
+    :func:`brokenness.load_map`, so every map goes through the file format a user has. They
+    go into ``cache / f"v{CONTROLS_VERSION}"``: bump the version when a source changes.
     """
     from brokenness import save_map
 
     sources = control_sources() if sources is None else sources
+    cache = cache / f"v{CONTROLS_VERSION}"
     cache.mkdir(parents=True, exist_ok=True)
     out = {}
     for name in names:

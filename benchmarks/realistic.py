@@ -22,18 +22,18 @@ the source's CRC-32, the seed, the degree and the attempt number):
    5 % minimum share, every partition's cells move by at least 0.5 m on average between
    its transform and every other partition's (clearly off), and, in the final map, every
    partition still holds at least 5 % of the occupied cells; otherwise the case is redrawn
-   (attempt 1, 2, ... up to 40).
+   (attempt 1, 2, ... up to 100).
 5. **The map in its own frame**: the bumped run drawn in a frame turned by U[0, 2 pi) and
    shifted by U[-30, 30] m per axis (the SLAM run started anywhere;
    :func:`brokenness.simulation.map_in_frame`), on a grid cropped to what it saw, three-state
    (free by ray casting, unknown elsewhere).
 6. **Files.** Map and reference are written as ROS YAML + PGM into
-   ``benchmarks/results/realistic/<case>/`` with ``truth.json`` (expected degree, bumps,
-   frame, each partition's transform *map cell -> reference cell of the files as loaded*,
-   i.e. with the own-frame turn and the resolution change, as a 3x3 matrix and in the
-   ``RigidTransform.to_dict`` form) and ``labels.npy`` (the partition of each occupied map
-   cell, -1 elsewhere). Cases are generated once and reused (regenerated when missing or of
-   another generator version).
+   ``benchmarks/results/realistic/<case>/`` (``--cache``) with ``truth.json`` (expected
+   degree, bumps, frame, each partition's transform *map cell -> reference cell of the
+   files as loaded*, i.e. with the own-frame turn and the resolution change, as a 3x3
+   matrix and in the ``RigidTransform.to_dict`` form) and ``labels.npy`` (the partition
+   of each occupied map cell, -1 elsewhere). Cases are generated once and reused
+   (regenerated when missing or of another generator version).
 
 Each case then runs through the public API as a user would:
 ``compute_brokenness(load_map(map.yaml), load_map(reference.yaml))``. Per case: the degree
@@ -44,11 +44,17 @@ partition's transform), and the compute time. Tables per degree for real logs an
 buildings; per-case rows in ``benchmarks/results/realistic.json`` (``--tables-from`` redoes
 the tables from such a file).
 
+The negative controls of ``benchmarks/negative_controls.py`` (its quick subset with
+``--quick``) are run too, after the cases, and their false claims counted in one line
+(``--no-controls`` skips them).
+
 Run: ``python benchmarks/realistic.py --quick --workers 1`` (25 cases: Orebro, Intel and
 Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full set
 ``python benchmarks/realistic.py --workers 2`` (8 logs x 9 degrees + 54 simulated cases);
-``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree),
-``--logs intel,aces``.
+``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree;
+``--first-seed 1`` for a disjoint, held-out set),
+``--logs intel,aces``; ``--compare earlier.json`` lists the cases and controls whose outcome
+changed since an earlier run.
 """
 
 from __future__ import annotations
@@ -56,6 +62,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 import warnings
@@ -99,7 +106,9 @@ from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
 from brokenness.simulation.synthetic import broken_map_from_run  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
-CACHE = RESULTS / "realistic"
+#: Where cases are written (``--cache`` or ``BROKENNESS_BENCH_CACHE`` to share one between
+#: worktrees: the files depend only on the case and :data:`GENERATOR_VERSION`).
+CACHE = Path(os.environ.get("BROKENNESS_BENCH_CACHE", RESULTS / "realistic"))
 #: Bumped into the cache: cases made by another version are regenerated.
 GENERATOR_VERSION = 1
 
@@ -126,7 +135,7 @@ MIN_OFF_M = 0.5  # mean displacement between any two partitions' transforms, met
 BUMP_RADIUS = 1.0  # d ~ U[0, r], metres
 PURE_SHIFT = 0.25  # chance that a bump is a pure shift
 FRAME_SHIFT = 30.0  # own frame: shift ~ U[-30, 30] m per axis
-MAX_ATTEMPTS = 40
+MAX_ATTEMPTS = 100
 TRUE_CELLS = 3.0  # "all partitions true": median displacement within 3 reference cells
 
 
@@ -184,11 +193,15 @@ def case_list(
     degrees: tuple[int, ...] | None = None,
     seeds: int = 1,
     logs: tuple[str, ...] | None = None,
+    first_seed: int = 0,
 ) -> list[Case]:
     """The cases: ``seeds`` per available log and ``6 seeds`` simulated, for each degree.
 
-    ``quick``: Orebro, Intel and Freiburg-101 (those available) and simulated seeds 0 and 1,
-    at degrees 0, 2, 4, 6, 8 (unless ``degrees`` says otherwise).
+    Log seeds ``first_seed .. first_seed + seeds - 1``, simulated buildings
+    ``6 first_seed .. 6 (first_seed + seeds) - 1`` (``first_seed=1``: a set disjoint from
+    the default one, e.g. held out while tuning on it). ``quick``: Orebro, Intel and
+    Freiburg-101 (those available) and simulated seeds 0 and 1, at degrees 0, 2, 4, 6, 8
+    (unless ``degrees`` says otherwise).
     """
     available = [n for n in LOG_NAMES if _log_path(n) is not None]
     if quick:
@@ -199,8 +212,8 @@ def case_list(
     else:
         names = [n for n in (logs or LOG_NAMES) if n in available]
         degs = degrees or DEGREES
-        sim_seeds = tuple(range(SIM_PER_SEED * seeds))
-        log_seeds = tuple(range(seeds))
+        sim_seeds = tuple(range(SIM_PER_SEED * first_seed, SIM_PER_SEED * (first_seed + seeds)))
+        log_seeds = tuple(range(first_seed, first_seed + seeds))
     out = [make_case(n, d, s) for n in names for d in degs for s in log_seeds]
     if logs is None or SIM in logs:
         out += [make_case(SIM, d, s) for d in degs for s in sim_seeds]
@@ -323,13 +336,16 @@ class Drawn:
         return [frame_truth(m, r, e, self.frame) for e in self.errors]
 
 
-def draw_case(case: Case) -> Drawn | None:
-    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted."""
+def draw_case(case: Case, rejected: list[str] | None = None) -> Drawn | None:
+    """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted.
+
+    ``rejected``, when given, receives why each rejected draw was rejected.
+    """
     prep = _prepare(case.source, case.seed)
     ref_run, index = _true_reference(case.source, case.seed, case.reference_resolution)
     run = prep.run
     n_scans = len(run.true_poses)
-    why: list[str] = []
+    why: list[str] = [] if rejected is None else rejected
     for attempt in range(MAX_ATTEMPTS):
         bumps = _bumps(case, n_scans, attempt)
         broken, expected, parts, labels0, judged, bp = broken_map_from_run(
@@ -389,13 +405,23 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
     if truth_path.is_file():
         old = json.loads(truth_path.read_text())
         if old.get("generator_version") == GENERATOR_VERSION and old.get("case") == asdict(case):
-            return folder if old.get("ok", True) else None
-    drawn = draw_case(case)
+            if old.get("ok", True):
+                return folder
+            if old.get("max_attempts", 0) >= MAX_ATTEMPTS:
+                return None
+    rejected: list[str] = []
+    drawn = draw_case(case, rejected)
     folder.mkdir(parents=True, exist_ok=True)
     if drawn is None:
         truth_path.write_text(
             json.dumps(
-                {"generator_version": GENERATOR_VERSION, "case": asdict(case), "ok": False},
+                {
+                    "generator_version": GENERATOR_VERSION,
+                    "case": asdict(case),
+                    "ok": False,
+                    "max_attempts": MAX_ATTEMPTS,
+                    "rejected": rejected,
+                },
                 indent=1,
             )
         )
@@ -438,10 +464,11 @@ def generate(case: Case, cache: Path = CACHE) -> Path | None:
     return folder
 
 
-def _generate_job(case: Case) -> tuple[Case, str | None, float]:
+def _generate_job(job: tuple[Case, str]) -> tuple[Case, str | None, float]:
     warnings.simplefilter("ignore")
+    case, cache = job
     t0 = time.perf_counter()
-    folder = generate(case)
+    folder = generate(case, Path(cache))
     return case, None if folder is None else str(folder), time.perf_counter() - t0
 
 
@@ -574,36 +601,76 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--degrees", type=str, default=None, help="e.g. 0,3,8")
     ap.add_argument("--seeds", type=int, default=1, help="seeds per log (6x simulated)")
+    ap.add_argument(
+        "--first-seed", type=int, default=0, help="1: a set disjoint from the default (held out)"
+    )
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
-    ap.add_argument("--out", type=Path, default=RESULTS / "realistic.json")
+    ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
+    ap.add_argument("--cache", type=Path, default=CACHE, help="folder of the generated cases")
+    ap.add_argument(
+        "--compare", type=Path, default=None, help="list the cases that changed since this run"
+    )
+    ap.add_argument(
+        "--no-controls",
+        action="store_true",
+        help="skip the negative controls (negative_controls.py; its quick subset with --quick)",
+    )
     args = ap.parse_args(argv)
     if args.tables_from is not None:
-        print(tables(json.loads(args.tables_from.read_text())["rows"]))
+        saved = json.loads(args.tables_from.read_text())
+        print(tables(saved["rows"]))
+        print(failures(saved["rows"]))
+        if saved.get("controls"):
+            print(_controls_line(saved["controls"]))
         return 0
+    if args.out is None:
+        args.out = RESULTS / ("realistic_quick.json" if args.quick else "realistic.json")
     warnings.simplefilter("ignore")
     degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
     logs = tuple(args.logs.split(",")) if args.logs else None
-    cases = case_list(quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs)
+    cases = case_list(
+        quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs, first_seed=args.first_seed
+    )
     start = time.perf_counter()
     workers = max(1, args.workers)
     # phase 1: generate what is missing (cases of one source run in one process, in order)
     with ProcessPoolExecutor(workers) as pool:
-        made = list(pool.map(_generate_job, cases, chunksize=max(1, len(cases) // (4 * workers))))
+        made = list(
+            pool.map(
+                _generate_job,
+                [(c, str(args.cache)) for c in cases],
+                chunksize=max(1, len(cases) // (4 * workers)),
+            )
+        )
     gen_seconds = time.perf_counter() - start
     failed = [c.name for c, f, _ in made if f is None]
     folders = [f for _, f, _ in made if f is not None]
     print(
         f"{len(cases)} cases ({len(failed)} could not be drawn: {', '.join(failed) or '-'}); "
-        f"generation {gen_seconds:.0f} s (cache {CACHE.relative_to(ROOT)})",
+        f"generation {gen_seconds:.0f} s (cache {args.cache})",
         flush=True,
     )
+    control_jobs: list[tuple[str, str, str, str, str]] = []
+    if not args.no_controls:
+        import negative_controls as nc
+        from cases import negative_control_pairs, save_control_maps
+
+        pairs = negative_control_pairs(quick=args.quick)
+        paths = save_control_maps(sorted({n for p in pairs for n in p}), nc.CACHE)
+        control_jobs = [("control", a, b, str(paths[a]), str(paths[b])) for a, b in pairs]
     # phase 2: compute (nothing else running in the pool)
     t1 = time.perf_counter()
     with ProcessPoolExecutor(workers) as pool:
         rows = list(pool.map(_evaluate_job, folders))
-    compute_wall = time.perf_counter() - t1
+        compute_wall = time.perf_counter() - t1
+        controls = list(pool.map(_control_job, control_jobs))
     print(tables(rows))
+    print(failures(rows))
+    if controls:
+        print(_controls_line(controls))
+    if args.compare is not None:
+        print(compare(json.loads(args.compare.read_text()), rows, controls))
     summary = {
         "cases": len(cases),
         "not_drawn": failed,
@@ -618,10 +685,68 @@ def main(argv: list[str] | None = None) -> int:
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(
-        json.dumps({"summary": summary, "rows": rows}, indent=1, allow_nan=False) + "\n"
+        json.dumps(
+            {"summary": summary, "rows": rows, "controls": controls}, indent=1, allow_nan=False
+        )
+        + "\n"
     )
     print(f"results: {args.out}")
     return 0
+
+
+def _outcome(r: dict[str, Any]) -> str:
+    if "error" in r:
+        return "error"
+    if not r["measured"]:
+        return "not measured"
+    return f"{r['degree']}{' (all true)' if r['all_true'] else ''}"
+
+
+def failures(rows: list[dict[str, Any]]) -> str:
+    """The cases whose partitions are not all true: ``case: expected -> found``."""
+    bad = [r for r in rows if not r.get("all_true")]
+    items = [f"{r['case']}: {r['expected_degree']} -> {_outcome(r)}" for r in bad]
+    return f"\nnot all true ({len(bad)}): " + ("; ".join(items) or "-")
+
+
+def compare(old: dict[str, Any], rows: list[dict[str, Any]], controls: list[dict[str, Any]]) -> str:
+    """Cases (and controls) whose outcome differs from those of an earlier results file."""
+    before = {r["case"]: r for r in old.get("rows", [])}
+    lines = []
+    for r in rows:
+        o = before.get(r["case"])
+        if o is not None and _outcome(o) != _outcome(r):
+            lines.append(
+                f"{r['case']} (expected {r['expected_degree']}): {_outcome(o)} -> {_outcome(r)}"
+            )
+    ctl_before = {r["pair"]: r for r in old.get("controls", [])}
+    for r in controls:
+        o = ctl_before.get(r["pair"])
+        if o is not None and "measured" in o and "measured" in r:
+            a = "-" if not o["measured"] else o["degree"]
+            b = "-" if not r["measured"] else r["degree"]
+            if a != b:
+                lines.append(f"control {r['pair']}: {a} -> {b}")
+    return f"\nchanged since the earlier run ({len(lines)}):\n" + ("\n".join(lines) or "-")
+
+
+def _control_job(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
+    import negative_controls as nc
+
+    return nc.run_pair(job)
+
+
+def _controls_line(controls: list[dict[str, Any]]) -> str:
+    """One line: false claims (degrees given) on the negative controls."""
+    done = [r for r in controls if "measured" in r]
+    false = [r for r in done if r["measured"]]
+    worst = sorted(false, key=lambda r: -(r["degree"] or 0))[:3]
+    return (
+        f"\nnegative controls: {len(false)} false claims of {len(done)} "
+        f"(errors {len(controls) - len(done)}); highest: "
+        + (", ".join(f"{r['pair']} {r['degree']}" for r in worst) or "-")
+        + " (details: benchmarks/negative_controls.py)"
+    )
 
 
 if __name__ == "__main__":

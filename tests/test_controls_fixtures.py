@@ -49,3 +49,20 @@ def test_broken_real_log_maps_hold_their_partitions(broken) -> None:  # noqa: AN
         for j, t in enumerate(b.truths):
             pts = cell_points(b.labels == j)
             assert index.occupied_agreement(t.apply(pts), 2.0).mean() > 0.8, (b.name, j)
+
+
+def test_all_partitions_true_needs_a_one_to_one_match_within_3_cells(broken) -> None:  # noqa: ANN001
+    from realistic import all_partitions_true
+
+    from brokenness import RigidTransform
+
+    b = broken[0]
+    truths = b.truths
+    assert all_partitions_true(list(reversed(truths)), truths, b.labels)  # order is free
+    assert not all_partitions_true(truths[:-1], truths, b.labels)  # one short
+    assert not all_partitions_true([*truths, truths[0]], truths, b.labels)  # one spurious
+    assert not all_partitions_true([truths[0]] * len(truths), truths, b.labels)  # not 1:1
+    near = RigidTransform(0.0, 2.0, 1.0).compose(truths[1])  # 2.2 cells off: still true
+    far = RigidTransform(0.0, 4.0, 0.0).compose(truths[1])  # 4 cells off: not
+    assert all_partitions_true([truths[0], near, *truths[2:]], truths, b.labels)
+    assert not all_partitions_true([truths[0], far, *truths[2:]], truths, b.labels)
