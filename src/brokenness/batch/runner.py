@@ -21,7 +21,6 @@ import contextlib
 import csv
 import io
 import json
-import logging
 import multiprocessing
 import os
 import time
@@ -585,17 +584,6 @@ def _stop(running: Mapping[Any, tuple[Any, Pair, float]]) -> None:
         conn.close()
 
 
-def _import_distributed() -> Any:
-    try:
-        import distributed
-    except ImportError:
-        raise ParameterError(
-            "running on a Dask cluster needs the optional packages dask and distributed: "
-            "pip install 'brokenness[dask]'"
-        ) from None
-    return distributed
-
-
 def _run_dask(
     pairs: Sequence[Pair],
     out: Path,
@@ -607,33 +595,11 @@ def _run_dask(
     workers: int,
     connect_timeout: float = 10.0,
 ) -> None:
-    distributed = _import_distributed()
-    cluster = None
+    from .cluster import dask_client, import_distributed
+
+    distributed = import_distributed()
+    client, cluster = dask_client(scheduler, local_cluster, workers, connect_timeout)
     try:
-        if local_cluster:
-            try:
-                cluster = distributed.LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    host="127.0.0.1",
-                    dashboard_address=None,
-                    silence_logs=logging.ERROR,
-                )
-            except (OSError, RuntimeError, TimeoutError) as exc:
-                raise ParameterError(
-                    f"cannot start a local Dask cluster: {one_line(exc)}"
-                ) from None
-            client = distributed.Client(cluster, set_as_default=False)
-        else:
-            try:
-                client = distributed.Client(
-                    scheduler, timeout=connect_timeout, set_as_default=False
-                )
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise ParameterError(
-                    f"cannot connect to the Dask scheduler at {scheduler}: {one_line(exc)}"
-                ) from None
         with client:
             futures = {
                 client.submit(

@@ -11,12 +11,10 @@ local cluster or scheduler address, one-line errors for a lost worker).
 from __future__ import annotations
 
 import concurrent.futures as cf
-import logging
 import multiprocessing
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ParameterError
 from ..grid import OccupancyMap
 from .frames import TimelineFrame
 from .measure import FrameJob, FrameOptions, _failed, measure_frame
@@ -120,17 +118,6 @@ class PoolExecutor:
         self._pool.shutdown(wait=not self._pending, cancel_futures=True)
 
 
-def _import_distributed() -> Any:
-    try:
-        import distributed
-    except ImportError:
-        raise ParameterError(
-            "running on a Dask cluster needs the optional packages dask and distributed: "
-            "pip install 'brokenness[dask]'"
-        ) from None
-    return distributed
-
-
 class DaskExecutor:
     """A Dask cluster: a running scheduler, or a ``LocalCluster`` started here."""
 
@@ -145,32 +132,12 @@ class DaskExecutor:
         local_cluster: bool,
         connect_timeout: float = 10.0,
     ) -> None:
-        self._dd = distributed = _import_distributed()
-        self._cluster = None
-        if local_cluster:
-            try:
-                self._cluster = distributed.LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    host="127.0.0.1",
-                    dashboard_address=None,
-                    silence_logs=logging.ERROR,
-                )
-            except (OSError, RuntimeError, TimeoutError) as exc:
-                raise ParameterError(
-                    f"cannot start a local Dask cluster: {_one_line(exc)}"
-                ) from None
-            self._client = distributed.Client(self._cluster, set_as_default=False)
-        else:
-            try:
-                self._client = distributed.Client(
-                    scheduler, timeout=connect_timeout, set_as_default=False
-                )
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise ParameterError(
-                    f"cannot connect to the Dask scheduler at {scheduler}: {_one_line(exc)}"
-                ) from None
+        from ..batch.cluster import dask_client, import_distributed
+
+        self._dd = distributed = import_distributed()
+        self._client, self._cluster = dask_client(
+            scheduler, local_cluster, workers, connect_timeout
+        )
         n = len(self._client.scheduler_info().get("workers", {})) or workers
         self._limit = max(1, n)
         self._ref = self._client.scatter(reference, broadcast=True, hash=False)
