@@ -36,13 +36,12 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..grid import FREE, OccupancyMap
+from ..grid import FREE, OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex
-from ..masking.distance import sample_at
 from .partitions import Found
 from .views import isolated_cells
 
-__all__ = ["MAP_RATIO", "Contradiction", "contradiction", "distance_to"]
+__all__ = ["MAP_RATIO", "Contradiction", "contradiction"]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
 #: the chance rate, at the significance of the stopping rule (:meth:`Contradiction.upper_ratio`;
@@ -51,8 +50,9 @@ MAP_RATIO = 0.5
 #: A rate is judged only when chance alone would put at least this many of its cells on
 #: walls (fewer cells cannot tell a rate from the chance rate).
 MIN_EXPECTED = 10.0
-#: At most this many clear free cells (an even stride of them) are looked up.
-_MAX_FREE = 400_000
+#: About this many clear free cells at most (an even grid of them) are looked up: enough
+#: that chance alone would put thousands on walls, and memory that does not grow with the map.
+_MAX_FREE = 50_000
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,8 @@ class Contradiction:
     chance : float
         ``q``: the share of known reference cells that are occupied.
     stride : int
-        One clear free cell in ``stride`` was looked up (counts are of those).
+        The clear free cells of every ``stride``-th row and column were looked up (counts are
+        of those).
     """
 
     counted: NDArray[np.int64]
@@ -102,12 +103,6 @@ class Contradiction:
         return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
 
 
-def distance_to(mask: NDArray[np.bool_]) -> NDArray[np.float32]:
-    """Euclidean distance (OpenCV's 5x5 approximation) of every cell to the nearest True one."""
-    grid = np.where(mask, 0, 1).astype(np.uint8)
-    return np.asarray(cv2.distanceTransform(grid, cv2.DIST_L2, 5), dtype=np.float32)
-
-
 def contradiction(
     found: list[Found],
     points: NDArray[np.float64],
@@ -137,19 +132,35 @@ def contradiction(
     """
     reference = index.reference
     known = reference.known
+    occupied_ref = reference.occupied
     n_known = int(np.count_nonzero(known))
-    chance = float(np.count_nonzero(reference.occupied & known)) / n_known if n_known else 0.0
+    chance = float(np.count_nonzero(occupied_ref & known)) / n_known if n_known else 0.0
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
-    free = working.states == FREE
-    if k == 0 or not free.any():
+    states = working.states
+    free_rows = np.flatnonzero((states == FREE).any(axis=1))
+    if k == 0 or free_rows.size == 0:
         return empty
-    # the box of the map's known cells: free space outside it does not exist
-    rows_known = np.flatnonzero(free.any(axis=1))
-    cols_known = np.flatnonzero(free.any(axis=0))
-    r0, r1 = int(rows_known[0]), int(rows_known[-1]) + 1
-    c0, c1 = int(cols_known[0]), int(cols_known[-1]) + 1
-    occupied = working.occupied[r0:r1, c0:c1]
+    # the box of the map's free cells: free space outside it does not exist
+    free_cols = np.flatnonzero((states[free_rows[0] : free_rows[-1] + 1] == FREE).any(axis=0))
+    r0, r1 = int(free_rows[0]), int(free_rows[-1]) + 1
+    c0, c1 = int(free_cols[0]), int(free_cols[-1]) + 1
+    box = states[r0:r1, c0:c1]
+    occupied = box == OCCUPIED
+    # clear free cells: farther than 2c from every map wall (a disc of radius 2c around walls)
+    radius = max(int(math.ceil(2.0 * threshold)), 1)
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    near_wall = cv2.dilate(occupied.view(np.uint8), disc).view(bool)
+    clear_mask = (box == FREE) & ~near_wall
+    del near_wall
+    n_clear = int(np.count_nonzero(clear_mask))
+    if n_clear == 0:
+        return empty
+    # an even grid of at most about _MAX_FREE of them (every stride-th row and column)
+    stride = max(1, math.ceil(math.sqrt(n_clear / _MAX_FREE)))
+    sub_rows, sub_cols = np.nonzero(clear_mask[::stride, ::stride])
+    del clear_mask
+    rows, cols = sub_rows * stride, sub_cols * stride
     # the walls that label free space: cells of a partition, not isolated (a speck of noise
     # that one partition's transform happens to explain must not claim the room around it)
     owner = np.full(points.shape[0], -1, dtype=np.intp)
@@ -157,40 +168,33 @@ def contradiction(
         owner[f.members] = j
     px, py = points[:, 0].astype(np.intp) - c0, points[:, 1].astype(np.intp) - r0
     in_box = (py >= 0) & (py < r1 - r0) & (px >= 0) & (px < c1 - c0)
-    source = np.zeros(occupied.shape, dtype=bool)
-    source[py[in_box], px[in_box]] = owner[in_box] >= 0
-    source &= ~isolated_cells(occupied)
-    if not source.any():
+    px, py, owner = px[in_box], py[in_box], owner[in_box]  # row-major, as the box's labels
+    is_source = (owner >= 0) & ~isolated_cells(occupied)[py, px]
+    if not is_source.any():
         return empty
-    clear = free[r0:r1, c0:c1] & (distance_to(occupied) > 2.0 * threshold)
-    # which source wall is nearest (labels number the sources row-major)
+    source = np.zeros(occupied.shape, dtype=np.uint8)
+    source[py[is_source], px[is_source]] = 1
+    del occupied
+    # the nearest source wall of every cell (labels number the sources 1.. row-major)
     _, nearest = cv2.distanceTransformWithLabels(
-        np.where(source, 0, 1).astype(np.uint8),
-        cv2.DIST_L2,
-        cv2.DIST_MASK_5,
-        labelType=cv2.DIST_LABEL_PIXEL,
+        1 - source, cv2.DIST_L2, cv2.DIST_MASK_5, labelType=cv2.DIST_LABEL_PIXEL
     )
-    fr, fc = np.nonzero(clear)
-    stride = max(1, -(-fr.size // _MAX_FREE))
-    fr, fc = fr[::stride], fc[::stride]
-    if fr.size == 0:
-        return empty
-    sr, sc = np.nonzero(source)
-    source_owner = np.full(occupied.shape, -1, dtype=np.intp)
-    source_owner[py[in_box], px[in_box]] = owner[in_box]
-    free_owner = source_owner[sr, sc][nearest[fr, fc] - 1]
-    free_pts = np.column_stack([fc + c0, fr + r0]).astype(np.float64)
-    occupied_ref = reference.occupied.view(np.uint8).astype(np.float32)
-    known_ref = known.view(np.uint8).astype(np.float32)
+    del source
+    free_owner = owner[is_source][nearest[rows, cols] - 1]
+    del nearest
+    free_pts = np.column_stack([cols + c0, rows + r0]).astype(np.float64)
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
+    h, w = known.shape
     for j, f in enumerate(found):
         sel = free_owner == j
         if not sel.any():
             continue
-        moved = f.transform.apply(free_pts[sel])
-        on_known = sample_at(known_ref, moved, 0.0, nearest=True) > 0.5
-        on_wall = sample_at(occupied_ref, moved, 0.0, nearest=True) > 0.5
+        moved = np.rint(f.transform.apply(free_pts[sel])).astype(np.intp)
+        x, y = moved[:, 0], moved[:, 1]
+        inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        x, y = x[inside], y[inside]
+        on_known = known[y, x]
         counted[j] = int(np.count_nonzero(on_known))
-        contradicting[j] = int(np.count_nonzero(on_wall & on_known))
+        contradicting[j] = int(np.count_nonzero(on_known & occupied_ref[y, x]))
     return Contradiction(counted, contradicting, chance, stride)
