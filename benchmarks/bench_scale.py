@@ -168,6 +168,7 @@ def run_case(
         "n": repeat,
         "user": r["user"],
         "sys": r["sys"],
+        "cpu": r["user"] + r["sys"],
         "rss_mib": r["rss_kib"] / 1024,
         "bpc": (r["rss_kib"] - r["rss0_kib"]) * 1024 / cells,
         "load": load,
@@ -181,20 +182,30 @@ def run_case(
     return row
 
 
+def _slope(rs: list[dict], key: str, min_size: int = 0) -> str:
+    pts = [(np.log(r["cells"]), np.log(r[key])) for r in rs if r["size"] >= min_size]
+    if len(pts) < 2:
+        return "-"
+    x, y = zip(*pts, strict=True)
+    return f"{np.polyfit(x, y, 1)[0]:.2f}"
+
+
 def growth(rows: list[dict]) -> None:
-    print("\n| degree asked | sizes | exponent (all sizes) | exponent (2000² and up) |")
-    print("|---|---|---|---|")
+    """Least-squares slope of log(time) against log(cells), per degree asked."""
+    print(
+        "\n| degree asked | sizes | exponent, wall (all sizes) | wall (2000² and up) "
+        "| CPU (all sizes) | CPU (2000² and up) |"
+    )
+    print("|---|---|---|---|---|---|")
     for d in sorted({r["asked"] for r in rows}):
         rs = sorted((r for r in rows if r["asked"] == d), key=lambda r: r["cells"])
         if len(rs) < 2:
             continue
-        x = np.log([r["cells"] for r in rs])
-        y = np.log([r["median"] for r in rs])
-        slope_all = np.polyfit(x, y, 1)[0]
-        big = [(a, b) for a, b, r in zip(x, y, rs, strict=True) if r["size"] >= 2000]
-        slope_big = np.polyfit(*zip(*big, strict=True), 1)[0] if len(big) >= 2 else float("nan")
         sizes = ", ".join(str(r["size"]) for r in rs)
-        print(f"| {d} | {sizes} | {slope_all:.2f} | {slope_big:.2f} |")
+        print(
+            f"| {d} | {sizes} | {_slope(rs, 'median')} | {_slope(rs, 'median', 2000)} "
+            f"| {_slope(rs, 'cpu')} | {_slope(rs, 'cpu', 2000)} |"
+        )
 
 
 def make_manifest(base: OccupancyMap, folder: Path) -> Path:
@@ -228,7 +239,7 @@ def make_manifest(base: OccupancyMap, folder: Path) -> Path:
     return path
 
 
-def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float]:
+def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float, float, int]:
     shutil.rmtree(out, ignore_errors=True)
     exe = Path(sys.executable).with_name("brokenness")
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "brokenness"]
@@ -252,7 +263,11 @@ def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float]:
     n = len(list(out.glob("*.zip")))
     if n != 12:
         raise RuntimeError(f"batch wrote {n} result zips, not 12")
-    return wall, load
+    with (out / "summary.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    seconds = float(np.mean([float(r["seconds"]) for r in rows]))
+    exact = sum(r["degree"] == r["expected_degree"] for r in rows)
+    return wall, load, seconds, exact
 
 
 def batch(base: OccupancyMap, tmp: Path, rounds: int) -> None:
@@ -260,14 +275,21 @@ def batch(base: OccupancyMap, tmp: Path, rounds: int) -> None:
     folder.mkdir()
     manifest = make_manifest(base, folder)
     walls: dict[int, list[float]] = {1: [], 2: []}
-    print("\n| round | workers | wall s | s per pair | load |")
-    print("|---|---|---|---|---|")
+    print(
+        "\n| round | workers | wall s | s per pair | of which computing (summary's seconds) "
+        "| degree exact | load |"
+    )
+    print("|---|---|---|---|---|---|---|")
     for k in range(rounds):
         order = (1, 2) if k % 2 == 0 else (2, 1)
         for w in order:
-            wall, load = run_batch(manifest, w, tmp / f"out{w}")
+            wall, load, seconds, exact = run_batch(manifest, w, tmp / f"out{w}")
             walls[w].append(wall)
-            print(f"| {k + 1} | {w} | {wall:.1f} | {wall / 12:.3f} | {load:.1f} |", flush=True)
+            print(
+                f"| {k + 1} | {w} | {wall:.1f} | {wall / 12:.3f} | {seconds:.3f} | {exact}/12 "
+                f"| {load:.1f} |",
+                flush=True,
+            )
     one, two = np.median(walls[1]), np.median(walls[2])
     print(f"\nthroughput with 2 workers / with 1 (medians): {one / two:.2f}x")
 
