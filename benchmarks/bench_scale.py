@@ -1,0 +1,332 @@
+"""How ``compute_brokenness`` scales with the cells and the degree, and batch throughput (issue 14).
+
+Maps are made as ``bench_compute.py`` makes them (its helpers are imported): the Willow Garage
+map (``tests/data/willow-2010-02-18-0.10.yaml``, 608x566 at 0.1 m) rescaled with nearest
+neighbours so that it fills a square reference of about 87 % of the map's side, cut into
+``degree + 1`` rectangles, every rectangle but the first turned by 10-20 degrees about its
+centre and shifted, drawn on a ``size x size`` map. The expected degree counts the rectangles
+holding at least ``max(30 cells, 2 %)`` of the occupied cells (the default smallest
+partition), less one, so it can be lower than the degree asked for.
+
+Each case runs in a fresh Python process (maps built here, passed as ``.npy`` files): one
+small warm-up call (imports, FFT plans), then the timed calls. Memory is the child's
+``getrusage(RUSAGE_SELF).ru_maxrss``: "RSS" is the whole process's peak, "bytes/cell" the
+peak's growth over the timed calls (RSS peak minus RSS before them, maps already loaded)
+divided by the map's cells. The growth exponent is the least-squares slope of log(time)
+against log(cells), per degree, over all sizes and over the sizes of 2000² and more.
+
+Batch throughput: a manifest of 12 pairs of 688x646 (the Willow Garage map at its own size,
+degrees 0-5, turns of 10-20 and 5-10 degrees) run with ``brokenness batch --workers 1`` and
+``--workers 2`` (result zips with their overlay PNG, as a batch writes them): wall time of
+the whole command, and the summary's seconds (loading and computing) per pair.
+
+Run: ``python benchmarks/bench_scale.py --quick`` (1.5-3 minutes: 1000² at degrees 0, 2,
+5, 8; 2000² and 4000² at degrees 2 and 5; the batch once) or without ``--quick`` (5-15
+minutes: degrees 0-8 at 1000²; 1000²-8000² at degrees 2 and 5; 10000² at degree 8
+once; the batch twice, alternating the worker counts). The load average is printed per row:
+on a shared machine, compare ratios within one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from bench_compute import ROOT, broken_case, fit, grid_regions  # noqa: E402
+
+from brokenness import OccupancyMap, compute_brokenness, load_map, save_map  # noqa: E402
+
+WILLOW = ROOT / "tests" / "data" / "willow-2010-02-18-0.10.yaml"
+SHARED_WILLOW = (
+    ROOT.parent / "shared" / "data" / "willow-garage-2010-slam-map" / "willow-2010-02-18-0.10.yaml"
+)
+#: rows x cols of the grid cut into degree + 1 rectangles (its poorest cells merged when larger)
+GRIDS = {1: (1, 1), 2: (1, 2), 3: (1, 3), 4: (2, 2), 5: (2, 3), 6: (2, 3), 7: (4, 2), 8: (5, 2)}
+GRIDS[9] = (5, 2)
+
+
+def willow() -> OccupancyMap:
+    return load_map(SHARED_WILLOW if SHARED_WILLOW.exists() else WILLOW)
+
+
+def regions_for(ref: OccupancyMap, n: int) -> list[np.ndarray]:
+    """``n`` rectangles: the grid of GRIDS[n]; while it has more, the rectangle with the fewest
+    occupied cells is merged with its neighbour in the same row."""
+    rows, cols = GRIDS[n]
+    regs = grid_regions(ref.shape, rows, cols)
+    index = [(i, j) for i in range(rows) for j in range(cols)]
+    while len(regs) > n:
+        k = int(np.argmin([np.count_nonzero(ref.occupied & r) for r in regs]))
+        i, j = index[k]
+        other = next(
+            q for q, (a, b) in enumerate(index) if a == i and b in (j - 1, j + 1) and q != k
+        )
+        regs[other] = regs[other] | regs[k]
+        del regs[k], index[k]
+    return regs
+
+
+def make_case(
+    base: OccupancyMap, size: int, degree: int, max_angle: float = 20.0
+) -> tuple[OccupancyMap, OccupancyMap, int]:
+    """(map, reference, expected degree) of ``size x size`` cells."""
+    pad = round(size * 0.065)
+    inner = size - 2 * pad
+    scale = inner / max(base.shape)
+    big = cv2.resize(base.states, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+    res = None if base.resolution is None else base.resolution / scale
+    ref = fit(OccupancyMap(big, res), inner)
+    regions = regions_for(ref, degree + 1)
+    m, _ = broken_case(ref, regions, max_angle, pad=pad)
+    return m, ref, expected_degree(ref, regions)
+
+
+def expected_degree(ref: OccupancyMap, regions: list[np.ndarray]) -> int:
+    """Rectangles that can be partitions under the default stopping rule's size floor
+    (``max(30 cells, 2 %)`` of the occupied cells), less one."""
+    floor = max(30, 0.02 * ref.n_occupied)
+    return sum(np.count_nonzero(ref.occupied & r) >= floor for r in regions) - 1
+
+
+# ----------------------------------------------------------------------------- child process
+
+
+def child(map_npy: str, ref_npy: str, repeat: int, resolution: float) -> None:
+    warnings.simplefilter("ignore")
+    m = OccupancyMap(np.load(map_npy), resolution)
+    ref = OccupancyMap(np.load(ref_npy), resolution)
+    w = willow()
+    compute_brokenness(w, w)  # warm-up: imports, FFT plans
+    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    u0 = resource.getrusage(resource.RUSAGE_SELF)
+    times, result = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = compute_brokenness(m, ref)
+        times.append(time.perf_counter() - t0)
+    u1 = resource.getrusage(resource.RUSAGE_SELF)
+    assert result is not None
+    print(
+        json.dumps(
+            {
+                "times": times,
+                "degree": result.degree,
+                "rss0_kib": rss0,
+                "rss_kib": u1.ru_maxrss,
+                "user": (u1.ru_utime - u0.ru_utime) / repeat,
+                "sys": (u1.ru_stime - u0.ru_stime) / repeat,
+            }
+        )
+    )
+
+
+# ----------------------------------------------------------------------------- parent
+
+
+def run_case(
+    base: OccupancyMap, size: int, degree: int, repeat: int, tmp: Path
+) -> dict[str, float | int | None]:
+    m, ref, expected = make_case(base, size, degree)
+    cells = m.shape[0] * m.shape[1]
+    occupied = m.n_occupied
+    resolution = m.resolution or 0.1
+    np.save(tmp / "m.npy", m.states)
+    np.save(tmp / "r.npy", ref.states)
+    del m, ref
+    load = os.getloadavg()[0]
+    out = subprocess.run(
+        [
+            sys.executable,
+            __file__,
+            "--child",
+            str(tmp / "m.npy"),
+            str(tmp / "r.npy"),
+            str(repeat),
+            str(resolution),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    row = {
+        "size": size,
+        "cells": cells,
+        "occupied": occupied,
+        "asked": degree,
+        "expected": expected,
+        "degree": r["degree"],
+        "median": float(np.median(r["times"])),
+        "best": min(r["times"]),
+        "n": repeat,
+        "user": r["user"],
+        "sys": r["sys"],
+        "cpu": r["user"] + r["sys"],
+        "rss_mib": r["rss_kib"] / 1024,
+        "bpc": (r["rss_kib"] - r["rss0_kib"]) * 1024 / cells,
+        "load": load,
+    }
+    print(
+        f"| {size}² | {degree} | {expected} | {row['degree']} | {occupied} | {row['median']:.3f} "
+        f"| {row['best']:.3f} | {repeat} | {row['user']:.2f} + {row['sys']:.2f} "
+        f"| {row['rss_mib']:.0f} | {row['bpc']:.1f} | {load:.1f} |",
+        flush=True,
+    )
+    return row
+
+
+def _slope(rs: list[dict], key: str, min_size: int = 0) -> str:
+    pts = [(np.log(r["cells"]), np.log(r[key])) for r in rs if r["size"] >= min_size]
+    if len(pts) < 2:
+        return "-"
+    x, y = zip(*pts, strict=True)
+    return f"{np.polyfit(x, y, 1)[0]:.2f}"
+
+
+def growth(rows: list[dict]) -> None:
+    """Least-squares slope of log(time) against log(cells), per degree asked."""
+    print(
+        "\n| degree asked | sizes | exponent, wall (all sizes) | wall (2000² and up) "
+        "| CPU (all sizes) | CPU (2000² and up) |"
+    )
+    print("|---|---|---|---|---|---|")
+    for d in sorted({r["asked"] for r in rows}):
+        rs = sorted((r for r in rows if r["asked"] == d), key=lambda r: r["cells"])
+        if len(rs) < 2:
+            continue
+        sizes = ", ".join(str(r["size"]) for r in rs)
+        print(
+            f"| {d} | {sizes} | {_slope(rs, 'median')} | {_slope(rs, 'median', 2000)} "
+            f"| {_slope(rs, 'cpu')} | {_slope(rs, 'cpu', 2000)} |"
+        )
+
+
+def make_manifest(base: OccupancyMap, folder: Path) -> Path:
+    """12 pairs: the Willow Garage map at its own size (608x566) as the reference, broken at
+    degrees 0-5 with turns of up to 20 and up to 10 degrees, on a map padded by 40 cells."""
+    ref = base
+    save_map(ref, folder / "ref.yaml")
+    rows = []
+    for angle in (20.0, 10.0):
+        for degree in range(6):
+            regions = regions_for(ref, degree + 1)
+            m, _ = broken_case(ref, regions, angle, pad=40)
+            expected = expected_degree(ref, regions)
+            name = f"m{degree}_{int(angle)}.yaml"
+            save_map(m, folder / name)
+            rows.append({"map": name, "reference": "ref.yaml", "expected_degree": expected})
+    path = folder / "manifest.csv"
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["map", "reference", "expected_degree"])
+        w.writeheader()
+        w.writerows(rows)
+    return path
+
+
+def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float, float, int]:
+    shutil.rmtree(out, ignore_errors=True)
+    exe = Path(sys.executable).with_name("brokenness")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "brokenness"]
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    subprocess.run(
+        [
+            *cmd,
+            "batch",
+            str(manifest),
+            "--out",
+            str(out),
+            "--workers",
+            str(workers),
+            "--no-progress",
+            "-q",
+        ],
+        check=True,
+    )
+    wall = time.perf_counter() - t0
+    n = len(list(out.glob("*.zip")))
+    if n != 12:
+        raise RuntimeError(f"batch wrote {n} result zips, not 12")
+    with (out / "summary.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    seconds = float(np.mean([float(r["seconds"]) for r in rows]))
+    exact = sum(r["degree"] == r["expected_degree"] for r in rows)
+    return wall, load, seconds, exact
+
+
+def batch(base: OccupancyMap, tmp: Path, rounds: int) -> None:
+    folder = tmp / "batch"
+    folder.mkdir()
+    manifest = make_manifest(base, folder)
+    walls: dict[int, list[float]] = {1: [], 2: []}
+    print(
+        "\n| round | workers | wall s | s per pair | of which computing (summary's seconds) "
+        "| degree exact | load |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for k in range(rounds):
+        order = (1, 2) if k % 2 == 0 else (2, 1)
+        for w in order:
+            wall, load, seconds, exact = run_batch(manifest, w, tmp / f"out{w}")
+            walls[w].append(wall)
+            print(
+                f"| {k + 1} | {w} | {wall:.1f} | {wall / 12:.3f} | {seconds:.3f} | {exact}/12 "
+                f"| {load:.1f} |",
+                flush=True,
+            )
+    one, two = np.median(walls[1]), np.median(walls[2])
+    print(f"\nthroughput with 2 workers / with 1 (medians): {one / two:.2f}x")
+
+
+def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":
+        child(sys.argv[2], sys.argv[3], int(sys.argv[4]), float(sys.argv[5]))
+        return
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="the subset (about 3 minutes)")
+    parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore")
+    base = willow()
+    if args.quick:
+        cases = [(1000, d, 3) for d in (0, 2, 5, 8)]
+        cases += [(s, d, 2 if s < 4000 else 1) for s in (2000, 4000) for d in (2, 5)]
+        rounds = 1
+    else:
+        cases = [(1000, d, 3) for d in range(9)]
+        cases += [(s, d, {2000: 3, 4000: 2}.get(s, 1)) for s in (2000, 4000, 8000) for d in (2, 5)]
+        cases += [(10000, 8, 1)]
+        rounds = 2
+    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the start\n")
+    print(
+        "| cells | degree asked | expected | found | occupied cells | median s | best s | runs "
+        "| CPU s (user + sys) | RSS MiB | peak bytes/cell | load |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory(prefix="bench_scale_") as t:
+        tmp = Path(t)
+        rows = [run_case(base, s, d, n, tmp) for s, d, n in cases]
+        growth(rows)
+        if not args.no_batch:
+            batch(base, tmp, rounds)
+    print(f"\nload average at the end: {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()
