@@ -98,8 +98,8 @@ def test_a_reference_that_knows_little_free_space_does_not_hide_the_partitions()
     area within ``c`` of a wall alone: with the reference's free space known only up to 5
     cells from its walls, that share (``p0``) is 0.49 instead of 0.10, above the agreement of
     every partition of this degree-3 map (17-44 % of its cells), and nothing was found. The
-    step's other hypotheses agree with about 10 % of the cells: chance for this map and
-    reference; the four true partitions are found."""
+    step's rival hypotheses (other transforms of this map onto this reference) tell what
+    chance is here; the four true partitions are found."""
     from brokenness.grid import FREE, UNKNOWN
     from brokenness.masking import ReferenceIndex
     from brokenness.masking.distance import manhattan_distance_map

@@ -22,8 +22,11 @@ SAMPLE_CELLS = 3000
 #: Largest number of trimmed-ICP iterations of a refinement.
 ICP_ITERATIONS = 8
 #: The quantile of the rival hypotheses' agreement shares taken as chance
-#: (:func:`rival_chance`).
-RIVAL_QUANTILE = 0.5
+#: (:func:`rival_chance`): the upper quartile, not the median, errs on the side of chance
+#: (the hypotheses of a registration are already biased towards agreement). The median
+#: measured the same on the realistic benchmark, but let more maps of other places past
+#: the stopping rule (to the contradiction test: 375 of 392 against 342).
+RIVAL_QUANTILE = 0.75
 
 
 def best_hypothesis(
@@ -122,12 +125,13 @@ def rival_chance(
     chance when much of the map lands off the reference's known area and its cells are
     lines, not scattered dots: at 0.1 m cells with ``c = 2`` a dense reference has
     ``p0 = 0.3``, while wrong transforms of a broken map make 8-13 % of its cells agree
-    (median). The step's *rival* hypotheses -- the candidates that put the cells, on
-    average, more than ``apart`` cells from where ``best`` does -- are such wrong transforms
-    of this very map onto this very reference (a few of them may be other true parts): the
-    median of their agreement shares (:data:`RIVAL_QUANTILE`, on the same strided sample of
-    at most :data:`SAMPLE_CELLS` cells as the scores) is chance for them. Returns
-    ``min(p0, that median)``; ``p0`` when there is no rival.
+    (median; 12-15 % at the upper quartile). The step's *rival* hypotheses -- the
+    candidates that put the cells, on average, more than ``apart`` cells from where ``best``
+    does -- are such wrong transforms of this very map onto this very reference (a few of
+    them may be other true parts): the upper quartile of their agreement shares
+    (:data:`RIVAL_QUANTILE`, on the same strided sample of at most :data:`SAMPLE_CELLS`
+    cells as the scores) is chance for them. Returns ``min(p0, that quartile)``; ``p0``
+    when there is no rival.
     """
     sample = points[:: max(1, -(-points.shape[0] // SAMPLE_CELLS))]
     if sample.shape[0] == 0:
