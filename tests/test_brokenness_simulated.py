@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from brokenness import compute_brokenness
+from brokenness import OccupancyMap, compute_brokenness
 from brokenness.masking import cell_points
 from brokenness.simulation.synthetic import simulate_broken_map
 
@@ -91,3 +91,27 @@ def test_a_partition_that_lost_cells_to_others_is_recovered(monkeypatch):
     assert max(_transform_errors(result, sim)) < 4.0  # every partition is a true one
     monkeypatch.setattr(recovery, "SUPPORT_SHARE", 0.0)  # no suspect: the recursion alone
     assert compute_brokenness(sim.map, sim.reference).degree == degree - 1
+
+
+def test_a_reference_that_knows_little_free_space_does_not_hide_the_partitions():
+    """The chance agreement of the stopping rule is not the share of the reference's known
+    area within ``c`` of a wall alone: with the reference's free space known only up to 5
+    cells from its walls, that share (``p0``) is 0.49 instead of 0.10, above the agreement of
+    every partition of this degree-3 map (17-44 % of its cells), and nothing was found. The
+    step's rival hypotheses (other transforms of this map onto this reference) tell what
+    chance is here; the four true partitions are found."""
+    from brokenness.grid import FREE, UNKNOWN
+    from brokenness.masking import ReferenceIndex
+    from brokenness.masking.distance import manhattan_distance_map
+
+    sim = simulate_broken_map(seed=0, degree=3)
+    assert sim.expected_degree == 3
+    ref = sim.reference
+    states = ref.states.copy()
+    states[(states == FREE) & (manhattan_distance_map(ref.occupied) > 5)] = UNKNOWN
+    dense = OccupancyMap(states, resolution=ref.resolution, origin=ref.origin)
+    assert ReferenceIndex.build(dense).chance_agreement(2) > 0.45
+    result = compute_brokenness(sim.map, dense)
+    assert result.measured
+    assert result.degree == 3
+    assert max(_transform_errors(result, sim)) < 1.5

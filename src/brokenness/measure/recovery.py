@@ -54,7 +54,7 @@ from ..grid import OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .hypotheses import best_hypothesis
+from .hypotheses import best_hypothesis, rival_chance
 from .options import Settings
 from .partitions import Found, merge_target, reassign, with_fringe
 from .views import remainder_states
@@ -345,7 +345,7 @@ class _Search:
     registrar: Registrar
     reference: Any
     around: NDArray[np.float64]  # occupied cells in the window around each cell
-    p0: float  # chance agreement (the stopping rule's)
+    p0: float  # chance agreement of a random placement (bounds the rivals' chance)
     settings: Settings
 
     def lost_partition(self, found: list[Found], cells: NDArray[np.bool_]) -> Found | None:
@@ -354,7 +354,6 @@ class _Search:
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells:
             return None
-        chance, _, needed = settings.needed(n, self.p0)
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
         states = remainder_states(
@@ -393,6 +392,17 @@ class _Search:
         transform = best[0]
         agree = self._coherent(transform, cells)
         k = int(np.count_nonzero(agree))
+        # chance: what the other candidates make of the suspects (rival_chance)
+        p_step = rival_chance(
+            candidates,
+            pts[left],
+            self.index,
+            settings.threshold,
+            transform,
+            settings.loose,
+            self.p0,
+        )
+        chance, _, needed = settings.needed(n, p_step)
         if k < needed:
             return None
         members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
