@@ -51,8 +51,10 @@ MAP_RATIO = 0.5
 #: walls (fewer cells cannot tell a rate from the chance rate).
 MIN_EXPECTED = 10.0
 #: About this many clear free cells at most (an even grid of them) are looked up: enough
-#: that chance alone would put thousands on walls, and memory that does not grow with the map.
-_MAX_FREE = 50_000
+#: that chance alone would put thousands on walls.
+_MAX_FREE = 400_000
+#: ... in chunks of this many, so that the temporaries do not grow with the map.
+_CHUNK = 16_384
 
 
 @dataclass(frozen=True)
@@ -158,12 +160,13 @@ def contradiction(
         return empty
     # an even grid of at most about _MAX_FREE of them (every stride-th row and column)
     stride = max(1, math.ceil(math.sqrt(n_clear / _MAX_FREE)))
-    sub_rows, sub_cols = np.nonzero(clear_mask[::stride, ::stride])
-    del clear_mask
-    rows, cols = sub_rows * stride, sub_cols * stride
+    sub_mask = clear_mask[::stride, ::stride]
+    sub_width = sub_mask.shape[1]
+    clear = np.flatnonzero(sub_mask)  # flat indices in the strided grid
+    del clear_mask, sub_mask
     # the walls that label free space: cells of a partition, not isolated (a speck of noise
     # that one partition's transform happens to explain must not claim the room around it)
-    owner = np.full(points.shape[0], -1, dtype=np.intp)
+    owner = np.full(points.shape[0], -1, dtype=np.int16)
     for j, f in enumerate(found):
         owner[f.members] = j
     px, py = points[:, 0].astype(np.intp) - c0, points[:, 1].astype(np.intp) - r0
@@ -180,21 +183,25 @@ def contradiction(
         1 - source, cv2.DIST_L2, cv2.DIST_MASK_5, labelType=cv2.DIST_LABEL_PIXEL
     )
     del source
-    free_owner = owner[is_source][nearest[rows, cols] - 1]
+    free_owner = owner[is_source][nearest[::stride, ::stride].ravel()[clear] - 1]
     del nearest
-    free_pts = np.column_stack([cols + c0, rows + r0]).astype(np.float64)
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
     h, w = known.shape
-    for j, f in enumerate(found):
-        sel = free_owner == j
-        if not sel.any():
-            continue
-        moved = np.rint(f.transform.apply(free_pts[sel])).astype(np.intp)
-        x, y = moved[:, 0], moved[:, 1]
-        inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-        x, y = x[inside], y[inside]
-        on_known = known[y, x]
-        counted[j] = int(np.count_nonzero(on_known))
-        contradicting[j] = int(np.count_nonzero(on_known & occupied_ref[y, x]))
+    for start in range(0, clear.size, _CHUNK):  # bounded temporaries, whatever the map
+        idx = clear[start : start + _CHUNK]
+        owners = free_owner[start : start + _CHUNK]
+        rows, cols = np.divmod(idx, sub_width)
+        pts = np.column_stack([cols * stride + c0, rows * stride + r0]).astype(np.float64)
+        for j, f in enumerate(found):
+            sel = owners == j
+            if not sel.any():
+                continue
+            moved = np.rint(f.transform.apply(pts[sel])).astype(np.intp)
+            x, y = moved[:, 0], moved[:, 1]
+            inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            x, y = x[inside], y[inside]
+            on_known = known[y, x]
+            counted[j] += int(np.count_nonzero(on_known))
+            contradicting[j] += int(np.count_nonzero(on_known & occupied_ref[y, x]))
     return Contradiction(counted, contradicting, chance, stride)
