@@ -493,7 +493,11 @@ def _running(pid: int) -> bool:
 
 def test_ctrl_c_drains_the_workers_before_the_summary(tmp_path):
     manifest = tmp_path / "runs.csv"
-    manifest.write_text("map,reference,k\n" + "".join(f"{MAP},{REFERENCE},{k}\n" for k in range(9)))
+    # enough pairs that the batch cannot finish between its first result and the signal
+    pairs = 40
+    manifest.write_text(
+        "map,reference,k\n" + "".join(f"{MAP},{REFERENCE},{k}\n" for k in range(pairs))
+    )
     out = tmp_path / "o"
     proc = _batch(manifest, out, start_new_session=True)
     try:
@@ -507,7 +511,7 @@ def test_ctrl_c_drains_the_workers_before_the_summary(tmp_path):
     time.sleep(1.0)  # a worker left running would write more zips now
     finished = {p.stem.rsplit("-", 1)[1] for p in out.glob("*.zip")}
     rows = {r["id"]: r["status"] for r in csv.DictReader((out / "summary.csv").open())}
-    assert len(rows) == 9
+    assert len(rows) == pairs
     assert {i for i, s in rows.items() if s == "done"} == finished
     assert set(rows.values()) <= {"done", "not run"}
 
