@@ -52,16 +52,8 @@ def best_hypothesis(
     def hard(moved: NDArray[np.float64]) -> NDArray[np.bool_]:
         return index.occupied_agreement(moved, threshold)
 
-    # Hypotheses are scored on an evenly strided sample of the cells (deterministic).
-    sample = points[:: max(1, -(-points.shape[0] // SAMPLE_CELLS))]
-    # Rigid hypotheses only (a registration's matrix algebra may leave the scale at 1 +- 1e-15).
-    rigid = [
-        Candidate(
-            RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty), c.confidence
-        )
-        for c in candidates
-        if abs(c.transform.scale - 1.0) < 1e-6
-    ]
+    sample = _sample(points)
+    rigid = _rigid(candidates)
     values = soft_agreements(
         index.occupied_distance, [c.transform for c in rigid], sample, threshold
     )
@@ -83,6 +75,23 @@ def best_hypothesis(
     if best is None:
         return None
     return best, hard(best.apply(points))
+
+
+def _sample(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The evenly strided sample (at most :data:`SAMPLE_CELLS`) hypotheses are scored on."""
+    return points[:: max(1, -(-points.shape[0] // SAMPLE_CELLS))]
+
+
+def _rigid(candidates: list[Any]) -> list[Candidate]:
+    """The rigid hypotheses, as exact rigid transforms (a registration's matrix algebra may
+    leave the scale at 1 +- 1e-15)."""
+    return [
+        Candidate(
+            RigidTransform(c.transform.rotation, c.transform.tx, c.transform.ty), c.confidence
+        )
+        for c in candidates
+        if abs(c.transform.scale - 1.0) < 1e-6
+    ]
 
 
 def _refinements(
@@ -133,16 +142,13 @@ def rival_chance(
     cells as the scores) is chance for them. Returns ``min(p0, that quartile)``; ``p0``
     when there is no rival.
     """
-    sample = points[:: max(1, -(-points.shape[0] // SAMPLE_CELLS))]
+    sample = _sample(points)
     if sample.shape[0] == 0:
         return p0
     at_best = best.apply(sample)
     shares = []
-    for c in candidates:
-        t = c.transform
-        if abs(t.scale - 1.0) >= 1e-6:
-            continue
-        moved = RigidTransform(t.rotation, t.tx, t.ty).apply(sample)
+    for c in _rigid(candidates):
+        moved = c.transform.apply(sample)
         if float(np.linalg.norm(moved - at_best, axis=1).mean()) <= apart:
             continue  # the best hypothesis itself, or a copy of it
         shares.append(np.count_nonzero(index.occupied_agreement(moved, threshold)))
