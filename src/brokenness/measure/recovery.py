@@ -116,10 +116,17 @@ def agreement_support(
     ndarray of float64
         In [0, 1]; 0 for cells of no partition.
     """
+    around = _occupied_around(points, shape, radius)
+    return _support(found, points, index, threshold, shape, radius, around)
+
+
+def _occupied_around(
+    points: NDArray[np.float64], shape: tuple[int, int], radius: int
+) -> NDArray[np.float64]:
+    """Per occupied cell, the occupied cells in the square window around it."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
-    around = _window_counts(rows, cols, everything, everything, shape, radius)
-    return _support(found, points, index, threshold, shape, radius, around)
+    return _window_counts(rows, cols, everything, everything, shape, radius)
 
 
 def drop_incoherent(
@@ -139,9 +146,7 @@ def drop_incoherent(
     that align them best. The least coherent partition is dropped first, one at a time.
     """
     threshold, min_cells = settings.threshold, settings.min_cells
-    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    everything = np.ones(points.shape[0], dtype=bool)
-    around = _window_counts(rows, cols, everything, everything, shape, SUPPORT_RADIUS)
+    around = _occupied_around(points, shape, SUPPORT_RADIUS)
     while len(found) > 1:
         support = _support(found, points, index, threshold, shape, SUPPORT_RADIUS, around)
         coherent = [int(np.count_nonzero(support[f.members] >= SUPPORT_SHARE)) for f in found]
@@ -289,8 +294,7 @@ def recover(
         (:func:`~brokenness.measure.partitions.reassign`).
     """
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    everything = np.ones(points.shape[0], dtype=bool)
-    around = _window_counts(rows, cols, everything, everything, working.shape, SUPPORT_RADIUS)
+    around = _occupied_around(points, working.shape, SUPPORT_RADIUS)
     threshold, min_cells = settings.threshold, settings.min_cells
     search = _Search(
         points,
