@@ -84,7 +84,7 @@ def test_sixteen_partitions_have_distinct_styles_and_matching_swatches():
 
 
 def test_one_cell_walls_stay_visible_on_a_big_map(monkeypatch):
-    from brokenness.report import overlay
+    from brokenness.report import raster
 
     m, result = grid_case(4000, 2)
     colour = np.asarray(partition_style(0)[0], np.float32)
@@ -95,7 +95,7 @@ def test_one_cell_walls_stay_visible_on_a_big_map(monkeypatch):
         return float(np.mean(np.all(np.abs(rgb - colour) < 1e-3, axis=2)))
 
     widened = wall_share()
-    monkeypatch.setattr(overlay, "_wall_radius", lambda *args: 0)
+    monkeypatch.setattr(raster, "_wall_radius", lambda *args: 0)
     bare = wall_share()  # one-pixel lines: what a pooled picture would show
     assert widened > 2.5 * bare and widened > 0.02
 

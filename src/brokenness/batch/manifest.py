@@ -12,10 +12,13 @@ CSV::
     runs/gmapping_0.1_1.pgm,ref/office.yaml,gmapping,0.1,1
 
 YAML (a list of pairs, or a mapping with ``pairs``, optional ``defaults`` applied to every
-pair and optional ``options`` passed to :func:`brokenness.compute_brokenness`)::
+pair, optional ``options`` passed to :func:`brokenness.compute_brokenness` and optional
+``overlays``, the overlay picture of every result zip: ``fast``, the default, ``figure``
+or ``none``, as ``brokenness batch --overlays``, which wins)::
 
     defaults: {reference: ref/office.yaml, dataset: office}
     options: {threshold: 2}
+    overlays: fast
     pairs:
       - {map: runs/gmapping_0.1_1.pgm, system: gmapping, noise: 0.1, seed: 1}
 """
@@ -121,11 +124,15 @@ class Manifest:
         Keyword options for :func:`brokenness.compute_brokenness` (YAML ``options``).
     path : Path or None
         The manifest file.
+    overlays : str or None
+        The overlay picture of the result zips (YAML ``overlays``: ``"fast"``,
+        ``"figure"`` or ``"none"``); ``None`` when the manifest does not say.
     """
 
     pairs: tuple[Pair, ...]
     options: dict[str, Any] = field(default_factory=dict, hash=False)
     path: Path | None = None
+    overlays: str | None = None
 
     @property
     def label_names(self) -> list[str]:
@@ -217,7 +224,7 @@ def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, A
     return rows, {}
 
 
-def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | None]:
     from ..io._yaml import parse_yaml
 
     try:
@@ -228,13 +235,16 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         raise ManifestError(f"{exc}".replace("invalid YAML", "not valid YAML", 1)) from None
     options: dict[str, Any] = {}
     defaults: dict[str, Any] = {}
+    overlays: str | None = None
     if isinstance(doc, Mapping):
-        unknown = set(doc) - {"pairs", "defaults", "options"}
+        unknown = set(doc) - {"pairs", "defaults", "options", "overlays"}
         if unknown:
             raise ManifestError(
                 f"{path}: unknown top-level key(s) {sorted(map(str, unknown))}; "
-                "expected pairs, defaults, options"
+                "expected pairs, defaults, options, overlays"
             )
+        if doc.get("overlays") is not None:
+            overlays = _overlays(doc["overlays"], path)
         entries = doc.get("pairs")
         defaults = doc.get("defaults") or {}
         options = doc.get("options") or {}
@@ -249,7 +259,17 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         if not isinstance(entry, Mapping):
             raise ManifestError(f"{path} row {i}: a pair must be a mapping, got {entry!r}")
         rows.append({**defaults, **entry})
-    return rows, dict(options)
+    return rows, dict(options), overlays
+
+
+def _overlays(value: Any, path: Path) -> str:
+    from ..report.results import OVERLAY_KINDS
+
+    if not isinstance(value, str) or value not in OVERLAY_KINDS:
+        raise ManifestError(
+            f"{path}: overlays must be one of {', '.join(OVERLAY_KINDS)}, got {value!r}"
+        )
+    return value
 
 
 def read_manifest(path: str | os.PathLike[str]) -> Manifest:
@@ -280,10 +300,11 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     if not os.path.lexists(p):
         raise ManifestError(f"{p}: no such manifest file")
     suffix = p.suffix.lower()
+    overlays = None
     if suffix == ".csv":
         rows, options = _read_csv(p)
     elif suffix in (".yaml", ".yml"):
-        rows, options = _read_yaml(p)
+        rows, options, overlays = _read_yaml(p)
     else:
         raise ManifestError(f"{p}: a manifest must be .csv, .yaml or .yml")
     base = p.resolve().parent
@@ -299,7 +320,7 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
                 "(same paths and labels)"
             )
         seen[pair.id] = pair.row
-    return Manifest(pairs, options, p)
+    return Manifest(pairs, options, p, overlays)
 
 
 def pairs_of(manifest: Manifest | str | os.PathLike[str] | Sequence[Pair]) -> Manifest:

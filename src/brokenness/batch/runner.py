@@ -21,7 +21,6 @@ import contextlib
 import csv
 import io
 import json
-import multiprocessing
 import os
 import time
 import warnings
@@ -76,11 +75,17 @@ class PairOptions:
         Keyword options for :func:`brokenness.compute_brokenness` (a pair's ``method`` and
         ``seed`` labels override them).
     dpi : int
-        Resolution of the overlay pictures in the result files.
+        Resolution of the overlay pictures in the result files (``overlays="figure"``).
+    overlays : {"fast", "figure", "none"}
+        The overlay picture of each result zip: ``"fast"`` (default) the raster picture of
+        :mod:`brokenness.report.fast_overlay` (numpy and Pillow, about 20 ms for a map of
+        700 x 700 cells); ``"figure"`` the matplotlib figure of
+        :func:`brokenness.report.render_overlay` (a few hundred ms); ``"none"`` no picture.
     """
 
     compute: dict[str, Any] = field(default_factory=dict, hash=False)
     dpi: int = 100
+    overlays: str = "fast"
 
 
 @dataclass(frozen=True)
@@ -279,7 +284,15 @@ def _evaluate(
                 "total_seconds": time.perf_counter() - start,
             },
         }
-        record = save_results(out / pair.result_name, result, m, ref, info=info, dpi=options.dpi)
+        record = save_results(
+            out / pair.result_name,
+            result,
+            m,
+            ref,
+            info=info,
+            dpi=options.dpi,
+            overlay=options.overlays,
+        )
     except Exception as exc:  # a failing pair must not stop the batch
         message = one_line(exc)
         seconds = time.perf_counter() - start
@@ -388,8 +401,19 @@ def _run_inline(pairs: Sequence[Pair], out: Path, options: PairOptions, done: Ca
 WORKER_MEMORY_ENV = "BROKENNESS_WORKER_MEMORY"
 #: Seconds between two checks of a worker that its batch process is still alive.
 PARENT_CHECK_SECONDS = 0.5
-#: Modules the fork server imports once, so that every worker starts warm.
+#: Modules the fork server imports once, so that every worker starts warm (and the overlay
+#: module of the batch's kind, :func:`_preload`).
 _PRELOAD = ("brokenness.batch.runner", "brokenness.measure", "brokenness.report.results")
+
+
+def _preload(options: PairOptions) -> tuple[str, ...]:
+    if options.overlays == "figure":
+        return (*_PRELOAD, "brokenness.report.overlay")  # matplotlib, once
+    if options.overlays == "fast":
+        return (*_PRELOAD, "brokenness.report.fast_overlay")
+    return _PRELOAD
+
+
 _PR_SET_PDEATHSIG = 1
 
 
@@ -444,10 +468,14 @@ def _watch_parent(parent_pid: int) -> None:
 def _worker_setup(parent_pid: int) -> None:
     """In a worker: ignore Ctrl-C (the batch process handles it), die with the batch process
     (a parent-death signal from the fork server, and a thread watching the batch process),
+    run OpenCV on one thread (:mod:`brokenness._threads`: the workers are the parallelism),
     and apply ``$BROKENNESS_WORKER_MEMORY``."""
     import signal
     import threading
 
+    from .._threads import one_thread
+
+    one_thread()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
@@ -533,8 +561,9 @@ def _run_pool(
     """
     from multiprocessing.connection import wait
 
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(list(_PRELOAD))
+    from .._threads import forkserver_context
+
+    ctx = forkserver_context(_preload(options))  # one BLAS/OpenMP thread per worker
     pending = list(reversed(pairs))
     running: dict[Any, tuple[Any, Pair, float]] = {}
     parent = os.getpid()
@@ -584,6 +613,14 @@ def _stop(running: Mapping[Any, tuple[Any, Pair, float]]) -> None:
         conn.close()
 
 
+def _cluster_pair(pair: Pair, out_dir: Path, options: PairOptions) -> RowResult:
+    """A pair on a worker of the local cluster (OpenCV on one thread, as a pool worker)."""
+    from .._threads import one_thread
+
+    one_thread()
+    return evaluate_pair(pair, out_dir, options)
+
+
 def _run_dask(
     pairs: Sequence[Pair],
     out: Path,
@@ -595,16 +632,17 @@ def _run_dask(
     workers: int,
     connect_timeout: float = 10.0,
 ) -> None:
+    from .._threads import single_threaded_children
     from .cluster import dask_client, import_distributed
 
     distributed = import_distributed()
-    client, cluster = dask_client(scheduler, local_cluster, workers, connect_timeout)
+    with single_threaded_children():  # a local cluster's worker processes
+        client, cluster = dask_client(scheduler, local_cluster, workers, connect_timeout)
+    task = _cluster_pair if cluster is not None else evaluate_pair
     try:
         with client:
             futures = {
-                client.submit(
-                    evaluate_pair, p, out, options, key=f"brokenness-pair-{p.id}", pure=False
-                ): p
+                client.submit(task, p, out, options, key=f"brokenness-pair-{p.id}", pure=False): p
                 for p in pairs
             }
             try:
@@ -797,6 +835,13 @@ def check_options(options: Mapping[str, Any]) -> None:
         check_threshold(options["threshold"])
 
 
+def _check_overlays(kind: str) -> None:
+    from ..report.results import OVERLAY_KINDS
+
+    if kind not in OVERLAY_KINDS:
+        raise ParameterError(f"overlays must be one of {', '.join(OVERLAY_KINDS)}, got {kind!r}")
+
+
 def run_batch(
     manifest: Manifest | str | os.PathLike[str] | Sequence[Pair],
     out_dir: str | os.PathLike[str],
@@ -808,6 +853,7 @@ def run_batch(
     progress: bool = True,
     console: Console | None = None,
     connect_timeout: float = 10.0,
+    overlays: str | None = None,
 ) -> BatchSummary:
     """Evaluate every pair of a manifest and write one result zip per pair plus a summary.
 
@@ -836,6 +882,10 @@ def run_batch(
 
     connect_timeout : float
         Seconds to wait for the Dask scheduler at ``scheduler``.
+    overlays : {"fast", "figure", "none"}, optional
+        The overlay picture of every result zip (see :class:`PairOptions`). Default: that
+        of ``options`` when it is a :class:`PairOptions`, else the manifest's
+        (``overlays:`` of a YAML manifest), else ``"fast"``.
 
     Returns
     -------
@@ -881,13 +931,17 @@ def run_batch(
         raise ParameterError(f"workers must be at least 1, got {workers}")
     if n_workers > MAX_WORKERS:
         raise ParameterError(f"workers must be at most {MAX_WORKERS}, got {workers}")
+    kind = overlays or (None if isinstance(options, PairOptions) else man.overlays)
     if options is None:
         opts = PairOptions(dict(man.options))
     elif isinstance(options, PairOptions):
         opts = replace(options, compute={**man.options, **options.compute})
     else:
         opts = PairOptions({**man.options, **dict(options)})
+    if kind is not None:
+        opts = replace(opts, overlays=kind)
     check_options(opts.compute)
+    _check_overlays(opts.overlays)
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)

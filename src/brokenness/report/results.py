@@ -14,7 +14,10 @@ Like the result files of ``evo``, a record can be compared and plotted later
 ``labels.npy``
     The partition label image (int16, the map's grid; -1 not occupied, -2 unassigned).
 ``overlay.png``
-    The partition overlay (:func:`brokenness.report.render_overlay`).
+    The partition overlay: the publication figure (:func:`brokenness.report.render_overlay`,
+    ``overlay="figure"``, the default), or the fast raster picture a batch draws
+    (:func:`brokenness.report.fast_overlay.fast_overlay_png`, ``overlay="fast"``); absent
+    with ``overlay="none"`` (``info.json`` says which, as ``"overlay"``).
 
 Writes are atomic: the zip is written to a temporary file in the destination folder and
 renamed over the destination with :func:`os.replace` only when complete, so an exception, a
@@ -40,17 +43,17 @@ from numpy.typing import NDArray
 
 from .. import __version__
 from .._atomic import atomic_write_bytes as atomic_write
-from ..errors import BrokennessError
+from ..errors import BrokennessError, ParameterError
 from ..grid import OccupancyMap
 from ..limits import max_cells, max_file_bytes
 from ..measure.result import BrokennessResult
 from ..transform import RigidTransform
-from .overlay import render_overlay
 from .repair import Repair, repair
 
 __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
+    "OVERLAY_KINDS",
     "ResultFileError",
     "ResultRecord",
     "atomic_write",
@@ -64,6 +67,11 @@ __all__ = [
 FORMAT_NAME = "brokenness-results"
 FORMAT_VERSION = 1
 _MEMBERS = ("info.json", "stats.json", "labels.npy", "overlay.png")
+#: Members every result file has (``overlay.png`` is absent when no overlay was asked for).
+_REQUIRED = _MEMBERS[:3]
+#: What ``overlay.png`` of a result file is: the matplotlib figure, the fast raster picture,
+#: or none at all.
+OVERLAY_KINDS: tuple[str, ...] = ("figure", "fast", "none")
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # fixed member dates: same content -> same bytes
 
 
@@ -84,7 +92,7 @@ class ResultRecord:
     labels : ndarray of int16
         The partition label image in the map's grid.
     overlay_png : bytes
-        The overlay picture.
+        The overlay picture (empty when the file has none).
     path : Path or None
         Where the record was read from or written to.
     """
@@ -254,6 +262,7 @@ def save_results(
     info: Mapping[str, Any] | None = None,
     dpi: int = 150,
     repaired: Repair | None = None,
+    overlay: str = "figure",
 ) -> ResultRecord:
     """Write a self-contained result file (zip) for one evaluated map.
 
@@ -272,6 +281,11 @@ def save_results(
         Resolution of the overlay picture.
     repaired : Repair, optional
         Reuse an already computed :func:`brokenness.report.repair`.
+    overlay : {"figure", "fast", "none"}
+        The ``overlay.png`` member: the matplotlib figure at ``dpi``
+        (:func:`brokenness.report.render_overlay`); the raster picture of
+        :mod:`brokenness.report.fast_overlay` (numpy and Pillow, a fraction of the time,
+        what a batch writes by default); or no overlay at all.
 
     Returns
     -------
@@ -282,6 +296,8 @@ def save_results(
     ------
     MapError
         If the result does not belong to the map.
+    ParameterError
+        For an unknown ``overlay``.
     OSError
         If the file cannot be written (nothing is left at ``path`` then).
 
@@ -290,6 +306,8 @@ def save_results(
     >>> save_results("run.zip", result, m, ref, info={"labels": {"system": "gmapping"}})
     ... # doctest: +SKIP
     """
+    if overlay not in OVERLAY_KINDS:
+        raise ParameterError(f"overlay must be one of {', '.join(OVERLAY_KINDS)}, got {overlay!r}")
     rep = repaired if repaired is not None else repair(result, map, reference)
     stats = build_stats(result, map, reference, rep)
     base: dict[str, Any] = {
@@ -306,21 +324,42 @@ def save_results(
             "step_seconds": list(result.step_seconds),
         },
         "labels": {},
+        "overlay": overlay,
     }
     info_dict = _jsonable(_merge(base, info or {}))
     labels = np.ascontiguousarray(result.labels, dtype=np.int16)
     npy = io.BytesIO()
     np.save(npy, labels, allow_pickle=False)
-    png = io.BytesIO()
-    render_overlay(result, map, reference, png, dpi=dpi)
     members = {
         "info.json": _dumps(info_dict),
         "stats.json": _dumps(stats),
         "labels.npy": npy.getvalue(),
-        "overlay.png": png.getvalue(),
     }
+    png = _overlay_png(overlay, result, map, reference, dpi)
+    if png is not None:
+        members["overlay.png"] = png
     atomic_write(path, _zip_bytes(members))
-    return ResultRecord(info_dict, stats, labels, members["overlay.png"], Path(path))
+    return ResultRecord(info_dict, stats, labels, png or b"", Path(path))
+
+
+def _overlay_png(
+    kind: str,
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    dpi: int,
+) -> bytes | None:
+    if kind == "none":
+        return None
+    if kind == "fast":
+        from .fast_overlay import fast_overlay_png
+
+        return fast_overlay_png(result, map, reference)
+    from .overlay import render_overlay  # matplotlib: loaded only for the figure
+
+    png = io.BytesIO()
+    render_overlay(result, map, reference, png, dpi=dpi)
+    return png.getvalue()
 
 
 #: Largest ``info.json`` / ``stats.json`` accepted in a result file (declared size), bytes.
@@ -423,15 +462,15 @@ def load_results(path: str | os.PathLike[str]) -> ResultRecord:
     try:
         with os.fdopen(open_nonblocking(p), "rb") as fh, zipfile.ZipFile(fh) as zf:
             names = set(zf.namelist())
-            missing = [m for m in _MEMBERS if m not in names]
+            missing = [m for m in _REQUIRED if m not in names]
             if missing:
                 raise ResultFileError(f"{p}: not a brokenness result file (no {missing[0]})")
-            raw = {m: _read_member(zf, m, limits[m], p) for m in _MEMBERS}
+            raw = {m: _read_member(zf, m, limits[m], p) for m in _MEMBERS if m in names}
         info = parse_json(raw["info.json"])
         stats = parse_json(raw["stats.json"])
         check_npy_header(raw["labels.npy"], f"{p}: labels.npy")
         labels = np.load(io.BytesIO(raw["labels.npy"]), allow_pickle=False)
-        overlay = raw["overlay.png"]
+        overlay = raw.get("overlay.png", b"")
     except ResultFileError:
         raise
     except BrokennessError as exc:  # the labels' header

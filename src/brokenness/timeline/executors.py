@@ -5,16 +5,18 @@ finish. At most ``workers`` maps are in flight: ``submit`` waits for one to fini
 so memory stays at one map per worker (plus the one being read from the bag). The reference
 is sent to each worker once (pool initializer; Dask ``scatter(broadcast=True)``), not with
 every map. The patterns are those of :mod:`brokenness.batch.runner` (forkserver pool, Dask
-local cluster or scheduler address, one-line errors for a lost worker).
+local cluster or scheduler address, one-line errors for a lost worker), and so is the
+threading policy (:mod:`brokenness._threads`: one thread per worker process; the timeline's
+reading and this process's OpenCV keep their defaults).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
-import multiprocessing
 from collections.abc import Callable
 from typing import Any
 
+from .._threads import forkserver_context, one_thread, single_threaded_children
 from ..grid import OccupancyMap
 from .frames import TimelineFrame
 from .measure import FrameJob, FrameOptions, _failed, measure_frame
@@ -26,23 +28,9 @@ Done = Callable[[TimelineFrame], None]
 _REFERENCE: OccupancyMap | None = None  # a pool worker's reference, set once per process
 
 
-def _one_thread() -> None:
-    """OpenCV (the registration's DFTs) on one thread: the workers are the parallelism.
-
-    By default OpenCV uses every core in every process: two workers on two cores would run
-    four threads. (The timeline's reading and this process's OpenCV keep their defaults.)
-    """
-    try:
-        import cv2
-
-        cv2.setNumThreads(1)
-    except (ImportError, AttributeError):  # pragma: no cover - cv2 is a dependency
-        pass
-
-
 def _init_worker(reference: OccupancyMap) -> None:
     global _REFERENCE
-    _one_thread()
+    one_thread()
     _REFERENCE = reference
 
 
@@ -50,7 +38,7 @@ def _cluster_task(
     m: OccupancyMap, reference: OccupancyMap, job: FrameJob, options: FrameOptions
 ) -> TimelineFrame:
     """A frame on a worker of the local cluster (one thread per worker process)."""
-    _one_thread()
+    one_thread()
     return measure_frame(m, reference, job, options)
 
 
@@ -87,7 +75,7 @@ class PoolExecutor:
     def __init__(
         self, reference: OccupancyMap, options: FrameOptions, done: Done, workers: int
     ) -> None:
-        ctx = multiprocessing.get_context("forkserver")
+        ctx = forkserver_context()  # one BLAS/OpenMP thread in each worker
         self._pool = cf.ProcessPoolExecutor(
             max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(reference,)
         )
@@ -135,9 +123,10 @@ class DaskExecutor:
         from ..batch.cluster import dask_client, import_distributed
 
         self._dd = distributed = import_distributed()
-        self._client, self._cluster = dask_client(
-            scheduler, local_cluster, workers, connect_timeout
-        )
+        with single_threaded_children():  # a local cluster's worker processes
+            self._client, self._cluster = dask_client(
+                scheduler, local_cluster, workers, connect_timeout
+            )
         n = len(self._client.scheduler_info().get("workers", {})) or workers
         self._limit = max(1, n)
         self._ref = self._client.scatter(reference, broadcast=True, hash=False)

@@ -1,0 +1,82 @@
+"""The threading policy of worker processes: one thread each, the processes are the parallelism.
+
+By default OpenCV (the registration's DFTs, the morphology), OpenBLAS and OpenMP each start
+a thread per core in every process: two workers on two cores would run four or more busy
+threads, fighting over the cores and the caches. A batch's and a timeline's local workers
+therefore run on one thread each:
+
+* :func:`one_thread` (in a worker process): ``cv2.setNumThreads(1)``. OpenCV reads its
+  setting whenever it runs, so this works after ``cv2`` is loaded.
+* :func:`single_threaded_children` (in the parent, around the start of the worker
+  processes or of the fork server they come from): ``OMP_NUM_THREADS``,
+  ``OPENBLAS_NUM_THREADS``, ``MKL_NUM_THREADS``, ``VECLIB_MAXIMUM_THREADS`` and
+  ``NUMEXPR_NUM_THREADS`` set to 1 in the environment the children inherit, since these
+  libraries size their thread pools once, when numpy loads them. The parent's own
+  environment is restored afterwards; a variable the user set is left as it is.
+
+The process that evaluates pairs itself (``workers=1``) keeps the libraries' defaults.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+__all__ = ["THREAD_ENV_VARS", "forkserver_context", "one_thread", "single_threaded_children"]
+
+#: Environment variables that size the thread pools of numpy's BLAS, OpenMP and numexpr.
+THREAD_ENV_VARS: tuple[str, ...] = (
+    "OMP_NUM_THREADS",
+    "OPENBLAS_NUM_THREADS",
+    "MKL_NUM_THREADS",
+    "VECLIB_MAXIMUM_THREADS",
+    "NUMEXPR_NUM_THREADS",
+)
+
+
+def one_thread() -> None:
+    """In a worker process: OpenCV on one thread."""
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)
+    except (ImportError, AttributeError):  # pragma: no cover - cv2 is a dependency
+        pass
+
+
+@contextlib.contextmanager
+def single_threaded_children() -> Iterator[None]:
+    """Processes started inside the block load numpy's BLAS and OpenMP with one thread.
+
+    Sets each of :data:`THREAD_ENV_VARS` that is not already set to ``"1"`` and removes it
+    again when the block ends.
+    """
+    added = [name for name in THREAD_ENV_VARS if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
+def forkserver_context(preload: Sequence[str] = ()) -> Any:
+    """The ``forkserver`` multiprocessing context, its server started single-threaded.
+
+    The fork server (one per parent process, started on first use and kept) imports
+    ``preload`` once, so that every worker forked from it starts warm; it is started here,
+    inside :func:`single_threaded_children`, so that its numpy, and every worker's, has one
+    BLAS thread. A server already running is reused as it is.
+    """
+    from multiprocessing import forkserver
+
+    ctx = multiprocessing.get_context("forkserver")
+    if preload:
+        ctx.set_forkserver_preload(list(preload))
+    with single_threaded_children():
+        forkserver.ensure_running()
+    return ctx
