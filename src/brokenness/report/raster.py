@@ -215,10 +215,15 @@ class _View:
         return self.k / self.m
 
     def pixels(self, points: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """Raster (column, row) of cell-coordinate points, -1 outside."""
-        scale = self.m / self.k
-        u = np.floor((points[:, 0] + 0.5 - self.x0) * scale).astype(np.intp)
-        v = np.floor((points[:, 1] + 0.5 - self.y0) * scale).astype(np.intp)
+        """Raster (column, row) of cell-coordinate points, -1 outside.
+
+        The pixel of the block of ``k`` cells a point falls in; in an enlarged view
+        (``m > 1``) the top-left pixel of its cell's ``m x m`` pixels, which
+        :func:`_fill_cells` spreads right and down over the cell (so a cell's colour lands
+        on the pixels of the background's same cell, not half a cell off).
+        """
+        u = np.floor((points[:, 0] + 0.5 - self.x0) / self.k).astype(np.intp) * self.m
+        v = np.floor((points[:, 1] + 0.5 - self.y0) / self.k).astype(np.intp) * self.m
         outside = (u < 0) | (u >= self.w * self.m) | (v < 0) | (v >= self.h * self.m)
         u[outside] = -1
         v[outside] = -1
