@@ -20,6 +20,12 @@ degrees 0-5, turns of 10-20 and 5-10 degrees) run with ``brokenness batch --work
 ``--workers 2`` (result zips with their overlay PNG, as a batch writes them): wall time of
 the whole command, and the summary's seconds (loading and computing) per pair.
 
+``--batch-only --rounds N`` runs only the batch part, N rounds (the order of the worker
+counts alternating), then the fixed costs of a batch and of a pair: the interpreter and
+imports of a process, the fork server's first worker, a worker process from the warm fork
+server, and per pair loading, computing, repair and stats, the fast overlay, the figure,
+and the whole ``save_results``. ``--overlays fast|figure|none`` is passed to ``batch``.
+
 Run: ``python benchmarks/bench_scale.py --quick`` (1.5-3 minutes: 1000² at degrees 0, 2,
 5, 8; 2000² and 4000² at degrees 2 and 5; the batch once) or without ``--quick`` (5-15
 minutes: degrees 0-8 at 1000²; 1000²-8000² at degrees 2 and 5; 10000² at degree 8
@@ -239,7 +245,9 @@ def make_manifest(base: OccupancyMap, folder: Path) -> Path:
     return path
 
 
-def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float, float, int]:
+def run_batch(
+    manifest: Path, workers: int, out: Path, overlays: str = "fast"
+) -> tuple[float, float, float, int]:
     shutil.rmtree(out, ignore_errors=True)
     exe = Path(sys.executable).with_name("brokenness")
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "brokenness"]
@@ -254,6 +262,8 @@ def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float, fl
             str(out),
             "--workers",
             str(workers),
+            "--overlays",
+            overlays,
             "--no-progress",
             "-q",
         ],
@@ -270,20 +280,20 @@ def run_batch(manifest: Path, workers: int, out: Path) -> tuple[float, float, fl
     return wall, load, seconds, exact
 
 
-def batch(base: OccupancyMap, tmp: Path, rounds: int) -> None:
+def batch(base: OccupancyMap, tmp: Path, rounds: int, overlays: str = "fast") -> None:
     folder = tmp / "batch"
     folder.mkdir()
     manifest = make_manifest(base, folder)
     walls: dict[int, list[float]] = {1: [], 2: []}
     print(
-        "\n| round | workers | wall s | s per pair | of which computing (summary's seconds) "
-        "| degree exact | load |"
+        f"\n--overlays {overlays}\n\n| round | workers | wall s | s per pair "
+        "| of which loading and computing (summary's seconds) | degree exact | load |"
     )
     print("|---|---|---|---|---|---|---|")
     for k in range(rounds):
         order = (1, 2) if k % 2 == 0 else (2, 1)
         for w in order:
-            wall, load, seconds, exact = run_batch(manifest, w, tmp / f"out{w}")
+            wall, load, seconds, exact = run_batch(manifest, w, tmp / f"out{w}", overlays)
             walls[w].append(wall)
             print(
                 f"| {k + 1} | {w} | {wall:.1f} | {wall / 12:.3f} | {seconds:.3f} | {exact}/12 "
@@ -291,7 +301,81 @@ def batch(base: OccupancyMap, tmp: Path, rounds: int) -> None:
                 flush=True,
             )
     one, two = np.median(walls[1]), np.median(walls[2])
-    print(f"\nthroughput with 2 workers / with 1 (medians): {one / two:.2f}x")
+    ratios = [a / b for a, b in zip(walls[1], walls[2], strict=True)]
+    print(
+        f"\nthroughput with 2 workers / with 1 (medians): {one / two:.2f}x; per round "
+        + ", ".join(f"{r:.2f}x" for r in ratios)
+    )
+    fixed_costs(folder)
+
+
+def _trivial_worker(conn: object, sent: float) -> None:
+    conn.send(time.time() - sent)  # type: ignore[attr-defined]
+    conn.close()  # type: ignore[attr-defined]
+
+
+def fixed_costs(folder: Path) -> None:
+    """What a pair and a batch cost besides computing: imports, the fork server, a worker
+    process, loading, repair and stats, the overlay (fast and figure), the zip."""
+    import io
+
+    from brokenness._threads import forkserver_context
+    from brokenness.batch.runner import _PRELOAD
+    from brokenness.report.fast_overlay import fast_overlay_png
+    from brokenness.report.overlay import render_overlay
+    from brokenness.report.repair import repair
+    from brokenness.report.results import build_stats, save_results
+
+    code = "import brokenness.batch.runner, brokenness.measure, brokenness.report.fast_overlay"
+    imports = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-c", code], check=True)
+        imports.append(time.perf_counter() - t0)
+    ctx = forkserver_context((*_PRELOAD, "brokenness.report.fast_overlay"))
+    starts = []
+    for _ in range(13):
+        recv, send = ctx.Pipe(duplex=False)
+        t0 = time.perf_counter()
+        proc = ctx.Process(target=_trivial_worker, args=(send, time.time()))
+        proc.start()
+        send.close()
+        recv.recv()
+        proc.join()
+        starts.append(time.perf_counter() - t0)
+    steps: dict[str, list[float]] = {
+        k: [] for k in ("load", "compute", "repair+stats", "fast", "figure", "save fast")
+    }
+    ref_path = folder / "ref.yaml"
+    for path in sorted(folder.glob("m*.yaml")):
+        t0 = time.perf_counter()
+        m, ref = load_map(path), load_map(ref_path)
+        t1 = time.perf_counter()
+        result = compute_brokenness(m, ref)
+        t2 = time.perf_counter()
+        build_stats(result, m, ref, repair(result, m, ref))
+        t3 = time.perf_counter()
+        fast_overlay_png(result, m, ref)
+        t4 = time.perf_counter()
+        render_overlay(result, m, ref, io.BytesIO(), dpi=100)
+        t5 = time.perf_counter()
+        save_results(folder / "x.zip", result, m, ref, overlay="fast")
+        t6 = time.perf_counter()
+        for key, dt in zip(
+            steps, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t6 - t5), strict=True
+        ):
+            steps[key].append(dt)
+    print(
+        "\nfixed costs (medians): interpreter and imports of a batch process "
+        f"{np.median(imports):.2f} s (load {os.getloadavg()[0]:.1f}); the fork server's "
+        f"first worker (its imports) {starts[0]:.2f} s; a worker process from the warm fork "
+        f"server {1000 * np.median(starts[1:]):.0f} ms"
+    )
+    print(
+        "per pair, in one process (median ms over the 12 pairs): "
+        + ", ".join(f"{k} {1000 * np.median(v):.0f}" for k, v in steps.items())
+        + " (save fast = repair, stats, fast overlay, zip and the inputs' SHA-256)"
+    )
 
 
 def main() -> None:
@@ -301,6 +385,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the subset (about 3 minutes)")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput")
+    parser.add_argument(
+        "--batch-only", action="store_true", help="only the batch throughput (and fixed costs)"
+    )
+    parser.add_argument("--rounds", type=int, default=None, help="batch rounds (default 1/2)")
+    parser.add_argument(
+        "--overlays", choices=("fast", "figure", "none"), default="fast", help="batch --overlays"
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     base = willow()
@@ -313,6 +404,10 @@ def main() -> None:
         cases += [(s, d, {2000: 3, 4000: 2}.get(s, 1)) for s in (2000, 4000, 8000) for d in (2, 5)]
         cases += [(10000, 8, 1)]
         rounds = 2
+    if args.rounds is not None:
+        rounds = args.rounds
+    if args.batch_only:
+        cases = []
     print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the start\n")
     print(
         "| cells | degree asked | expected | found | occupied cells | median s | best s | runs "
@@ -322,9 +417,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench_scale_") as t:
         tmp = Path(t)
         rows = [run_case(base, s, d, n, tmp) for s, d, n in cases]
-        growth(rows)
+        if rows:
+            growth(rows)
         if not args.no_batch:
-            batch(base, tmp, rounds)
+            batch(base, tmp, rounds, args.overlays)
     print(f"\nload average at the end: {os.getloadavg()[0]:.1f}")
 
 
