@@ -365,6 +365,23 @@ def fixed_costs(folder: Path) -> None:
             steps, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4, t6 - t5), strict=True
         ):
             steps[key].append(dt)
+    spin = "import time\nt = time.perf_counter()\nx = 0\nfor i in range(4_000_000): x += i * i\n"
+    spin += "print(time.perf_counter() - t)"
+    alone, both = [], []
+    for _ in range(3):
+        one = subprocess.run([sys.executable, "-c", spin], capture_output=True, text=True)
+        alone.append(float(one.stdout))
+        two = [
+            subprocess.Popen([sys.executable, "-c", spin], stdout=subprocess.PIPE, text=True)
+            for _ in range(2)
+        ]
+        both.append(max(float(p.communicate()[0]) for p in two))
+    print(
+        "\nthe machine: a CPU-bound loop takes "
+        f"{np.median(alone):.2f} s alone and {np.median(both):.2f} s with two at once: two "
+        f"processes get {2 * np.median(alone) / np.median(both):.2f}x the CPU of one "
+        "(the ceiling of the batch's ratio)"
+    )
     print(
         "\nfixed costs (medians): interpreter and imports of a batch process "
         f"{np.median(imports):.2f} s (load {os.getloadavg()[0]:.1f}); the fork server's "

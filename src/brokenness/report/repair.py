@@ -146,6 +146,8 @@ def repair_map(
     labels = _check(result, map)
     if not result.partitions:
         return align_map(map, RigidTransform.identity(), reference)
+    if len(result.partitions) == 1:  # every cell goes with it: the map moved as a whole
+        return align_map(map, result.partitions[0].transform, reference)
     owners = partition_owners(labels)
     enc = _encode(map.states)
     out = np.zeros(reference.shape, dtype=np.uint8)
@@ -198,11 +200,14 @@ def repair(result: BrokennessResult, map: OccupancyMap, reference: OccupancyMap)
     del labels
     t0 = result.partitions[0].transform if result.partitions else RigidTransform.identity()
     aligned = align_map(map, t0, reference)
+    psi_map = picture_distance(aligned, reference)
+    if len(result.partitions) <= 1:  # the repaired map is the aligned one (repair_map)
+        return Repair(repaired=aligned, aligned=aligned, psi_map=psi_map, psi_repaired=psi_map)
     repaired = repair_map(result, map, reference)
     return Repair(
         repaired=repaired,
         aligned=aligned,
-        psi_map=picture_distance(aligned, reference),
+        psi_map=psi_map,
         psi_repaired=picture_distance(repaired, reference),
     )
 

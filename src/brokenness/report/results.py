@@ -12,7 +12,8 @@ Like the result files of ``evo``, a record can be compared and plotted later
     largest partition; the unassigned cells; Psi of the map and of the repaired map against
     the reference; shapes and geometry of both maps.
 ``labels.npy``
-    The partition label image (int16, the map's grid; -1 not occupied, -2 unassigned).
+    The partition label image (the map's grid; -1 not occupied, -2 unassigned): int8 when
+    the labels fit (fewer than 128 partitions), int16 otherwise; read back as int16.
 ``overlay.png``
     The partition overlay: the publication figure (:func:`brokenness.report.render_overlay`,
     ``overlay="figure"``, the default), or the fast raster picture a batch draws
@@ -42,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import __version__
+from .._atomic import atomic_path
 from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError, ParameterError
 from ..grid import OccupancyMap
@@ -241,15 +243,52 @@ def _merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _zip_bytes(members: Mapping[str, bytes]) -> bytes:
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w") as zf:
-        for name, data in members.items():
-            zi = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
-            zi.compress_type = zipfile.ZIP_DEFLATED
-            zi.external_attr = 0o644 << 16
-            zf.writestr(zi, data)
-    return buf.getvalue()
+def _member(name: str) -> zipfile.ZipInfo:
+    zi = zipfile.ZipInfo(name, date_time=_ZIP_DATE)
+    zi.compress_type = zipfile.ZIP_DEFLATED
+    zi.external_attr = 0o644 << 16
+    return zi
+
+
+#: Rows of the label image converted and compressed at once (bounds the temporary memory).
+_LABEL_ROWS = 256
+
+
+def _compact(labels: NDArray[np.integer]) -> np.dtype[Any]:
+    """int8 when every label fits (fewer than 128 partitions), else int16."""
+    if labels.size == 0:
+        return np.dtype(np.int8)
+    lo, hi = int(labels.min()), int(labels.max())
+    return np.dtype(np.int8 if -128 <= lo and hi <= 127 else np.int16)
+
+
+def _write_zip(
+    path: str | os.PathLike[str], members: Mapping[str, bytes | None], labels: NDArray
+) -> None:
+    """Write the result zip atomically, streaming: ``labels.npy`` goes in after
+    ``stats.json`` (where ``members`` has ``None``), converted to its compact dtype and
+    compressed a strip of rows at a time, never as a whole in memory."""
+    dtype = _compact(labels)
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False,
+                 "shape": tuple(labels.shape)}
+    )  # fmt: skip
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        with zipfile.ZipFile(fh, "w") as zf:
+            for name, data in members.items():
+                zi = _member(name)
+                if data is not None:
+                    zf.writestr(zi, data)
+                    continue
+                zi.file_size = len(header.getvalue()) + labels.size * dtype.itemsize
+                with zf.open(zi, "w") as out:
+                    out.write(header.getvalue())
+                    for a in range(0, labels.shape[0], _LABEL_ROWS):
+                        strip = labels[a : a + _LABEL_ROWS]
+                        out.write(np.ascontiguousarray(strip, dtype=dtype).tobytes())
+        fh.flush()
+        os.fsync(fh.fileno())
 
 
 # -- public API -------------------------------------------------------------------------------
@@ -327,19 +366,19 @@ def save_results(
         "overlay": overlay,
     }
     info_dict = _jsonable(_merge(base, info or {}))
-    labels = np.ascontiguousarray(result.labels, dtype=np.int16)
-    npy = io.BytesIO()
-    np.save(npy, labels, allow_pickle=False)
-    members = {
+    labels = np.asarray(result.labels)
+    png = _overlay_png(overlay, result, map, reference, dpi)
+    members: dict[str, bytes | None] = {
         "info.json": _dumps(info_dict),
         "stats.json": _dumps(stats),
-        "labels.npy": npy.getvalue(),
+        "labels.npy": None,  # streamed from ``labels``
     }
-    png = _overlay_png(overlay, result, map, reference, dpi)
     if png is not None:
         members["overlay.png"] = png
-    atomic_write(path, _zip_bytes(members))
-    return ResultRecord(info_dict, stats, labels, png or b"", Path(path))
+    _write_zip(path, members, labels)
+    return ResultRecord(
+        info_dict, stats, labels.astype(np.int16, copy=False), png or b"", Path(path)
+    )
 
 
 def _overlay_png(
