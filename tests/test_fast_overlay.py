@@ -233,3 +233,10 @@ def test_workers_get_one_blas_thread_and_the_parent_keeps_its_environment(monkey
         assert pool.submit(os.getenv, "OPENBLAS_NUM_THREADS").result() == "1"
         assert pool.submit(os.getenv, "OMP_NUM_THREADS").result() == "1"
     assert "OPENBLAS_NUM_THREADS" not in os.environ
+
+
+def test_a_bad_worker_memory_is_refused_before_any_work(pair, tmp_path, monkeypatch):
+    monkeypatch.setenv("BROKENNESS_WORKER_MEMORY", "lots")
+    with pytest.raises(ParameterError, match="BROKENNESS_WORKER_MEMORY"):
+        run_batch(pair / "manifest.csv", tmp_path / "o", workers=2, progress=False)
+    assert not list((tmp_path / "o").glob("*.zip"))

@@ -519,11 +519,11 @@ def _worker_main(conn: Any, out: Path, options: PairOptions, parent_pid: int) ->
     is named ``bk-<pair id>`` (``ps``, ``/proc/PID/comm``), so that one can see which pair
     each worker evaluates, and ``bk-idle`` between pairs.
     """
+    setup_error: BaseException | None = None
     try:
         _worker_setup(parent_pid)
-    except BaseException:  # noqa: BLE001 - a worker that cannot start answers nothing
-        conn.close()
-        return
+    except BaseException as exc:  # noqa: BLE001 - said in the row of the pair it is sent
+        setup_error = exc
     try:
         while True:
             _name_process("bk-idle")
@@ -536,6 +536,8 @@ def _worker_main(conn: Any, out: Path, options: PairOptions, parent_pid: int) ->
             _name_process(f"bk-{pair.id}")
             go_on = True
             try:
+                if setup_error is not None:
+                    raise setup_error
                 row = evaluate_pair(pair, out, options)
             except BaseException as exc:  # noqa: BLE001 - anything becomes this pair's row
                 row = RowResult.failed(pair, f"worker failed: {one_line(exc)}")
@@ -993,6 +995,8 @@ def run_batch(
         opts = replace(opts, overlays=kind)
     check_options(opts.compute)
     _check_overlays(opts.overlays)
+    if n_workers > 1 and not (scheduler or local_cluster) and os.environ.get(WORKER_MEMORY_ENV):
+        parse_memory(os.environ[WORKER_MEMORY_ENV])  # a bad size: one line, before any work
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
