@@ -98,8 +98,10 @@ def record(result: BrokennessResult) -> dict[str, Any]:
 
 
 def _realistic_root() -> Path | None:
-    for root in (HERE / "results" / "realistic", ROOT.parent / "main" / "benchmarks" / "results"
-                 / "realistic"):
+    for root in (
+        HERE / "results" / "realistic",
+        ROOT.parent / "main" / "benchmarks" / "results" / "realistic",
+    ):
         if root.is_dir():
             return root
     return None
@@ -108,9 +110,12 @@ def _realistic_root() -> Path | None:
 def cases(quick: bool) -> Iterator[tuple[str, Callable[[], Pair]]]:
     """(name, builder of the pair) for every case of the set."""
     ex = ROOT / "examples"
-    yield "example", lambda: (
-        load_map(ex / "broken_building_31.yaml"),
-        load_map(ex / "building_31.yaml"),
+    yield (
+        "example",
+        lambda: (
+            load_map(ex / "broken_building_31.yaml"),
+            load_map(ex / "building_31.yaml"),
+        ),
     )
     data = ROOT / "tests" / "data"
     for name in ("building_31", "depot", "tb3_sandbox", "willow-2010-02-18-0.10"):
@@ -144,9 +149,12 @@ def cases(quick: bool) -> Iterator[tuple[str, Callable[[], Pair]]]:
         for name in REALISTIC:
             folder = root / name
             if (folder / "map.yaml").exists():
-                yield f"realistic:{name}", lambda f=folder: (
-                    load_map(f / "map.yaml"),
-                    load_map(f / "reference.yaml"),
+                yield (
+                    f"realistic:{name}",
+                    lambda f=folder: (
+                        load_map(f / "map.yaml"),
+                        load_map(f / "reference.yaml"),
+                    ),
                 )
 
 
