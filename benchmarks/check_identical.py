@@ -203,7 +203,7 @@ def main() -> None:
     print(f"{len(results)} cases in {time.perf_counter() - t_all:.1f} s -> {args.out}")
     if args.against:
         old = json.loads(Path(args.against).read_text())
-        if args.only:
+        if args.only or args.quick:
             old = {k: v for k, v in old.items() if k in results}
         diffs = compare(results, old)
         for d in diffs:

@@ -50,14 +50,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..grid import OCCUPIED, OccupancyMap
+from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .hypotheses import best_hypothesis, rival_chance
 from .options import Settings
 from .partitions import Found, merge_target, reassign, with_fringe
-from .views import remainder_states
+from .views import candidates_of, moving_remainder, occupied_count
 
 __all__ = [
     "DENSE_SHARE",
@@ -360,14 +360,20 @@ class _Search:
             return None
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
-        states = remainder_states(
-            self.working, rows, cols, cells, settings.uses_free, settings.drop_isolated
+        states = moving_remainder(
+            self.working,
+            rows,
+            cols,
+            cells,
+            settings.uses_free,
+            settings.drop_isolated,
+            settings.as_cells,
         )
-        if np.count_nonzero(states == OCCUPIED) < settings.min_cells:
+        if occupied_count(states) < settings.min_cells:
             return None
         left = np.flatnonzero(cells)
         candidates = _new_ones(
-            self.registrar.candidates(self.reference, states, 2 * settings.max_candidates),
+            candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
             found,
             pts[left],
             settings.loose,

@@ -112,7 +112,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError, NothingFoundWarning, ParameterError
-from ..grid import OCCUPIED, OccupancyMap
+from ..grid import OccupancyMap
 from ..limits import check_threshold
 from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
 from ..registration.base import Candidate, Registrar
@@ -134,7 +134,13 @@ from .partitions import (
 )
 from .recovery import drop_incoherent, recover
 from .result import BrokennessResult, Partition
-from .views import reference_states, remainder_states, walls_connected
+from .views import (
+    candidates_of,
+    moving_remainder,
+    occupied_count,
+    reference_states,
+    walls_connected,
+)
 
 __all__ = ["compute_brokenness"]
 
@@ -246,7 +252,12 @@ def compute_brokenness(
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
     uses_free = bool(getattr(registrar, "uses_free_space", True))
-    settings = Settings.of(opts, points.shape[0], uses_free, walls_connected(index.reference))
+    as_cells = bool(getattr(registrar, "accepts_cells", False))
+    if thorough is not None:
+        as_cells = as_cells and bool(getattr(thorough, "accepts_cells", False))
+    settings = Settings.of(
+        opts, points.shape[0], uses_free, walls_connected(index.reference), as_cells
+    )
     whole = registrar.prepare_reference(
         reference_states(index.reference, index.reference.occupied, uses_free)
     )
@@ -331,10 +342,16 @@ def _region_candidates(
                 cells = remaining & (tile_row == i) & (tile_col == j)
                 if np.count_nonzero(cells) < settings.min_cells:
                     continue
-                states = remainder_states(
-                    working, rows, cols, cells, settings.uses_free, settings.drop_isolated
+                states = moving_remainder(
+                    working,
+                    rows,
+                    cols,
+                    cells,
+                    settings.uses_free,
+                    settings.drop_isolated,
+                    settings.as_cells,
                 )
-                out += registrar.candidates(whole, states, settings.max_candidates)
+                out += candidates_of(registrar, whole, states, settings.max_candidates)
     return out
 
 
@@ -438,8 +455,10 @@ def _recurse(
         if steps > 2 * max_partitions:  # merges do not count; bound them too
             break
         t0 = time.perf_counter()
-        moving_states = remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
-        if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
+        moving_states = moving_remainder(
+            working, rows, cols, remaining, uses_free, drop_isolated, settings.as_cells
+        )
+        if occupied_count(moving_states) < min_cells:
             break  # what is left is scattered noise: nothing to register
         left = np.flatnonzero(remaining)
         left_points = points[left]
@@ -471,7 +490,7 @@ def _recurse(
                 continue
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             if widen_whole:
-                fresh = attempt.candidates(whole, moving_states, limit)
+                fresh = candidates_of(attempt, whole, moving_states, limit)
                 pool += fresh
                 best_whole = best_hypothesis(pool, left_points, index, threshold, refined)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
@@ -490,7 +509,7 @@ def _recurse(
                         reference_states(index.reference, reference_occupied, uses_free)
                     )
                 if widen_rest:
-                    fresh_rest = attempt.candidates(rest, moving_states, limit)
+                    fresh_rest = candidates_of(attempt, rest, moving_states, limit)
                     pool_rest += fresh_rest
                     best_rest = best_hypothesis(pool_rest, left_points, index, threshold, refined)
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)

@@ -8,16 +8,23 @@ walls are connected lines.
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..grid import FREE, UNKNOWN, OccupancyMap
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import manhattan_distance_map
+from ..registration.base import Candidate, CellsRegistrar, OccupiedCells, Registrar
 
 __all__ = [
+    "candidates_of",
     "isolated_cells",
+    "moving_remainder",
+    "occupied_count",
     "reference_states",
+    "remainder_cells",
     "remainder_states",
     "walls_connected",
     "withdraw",
@@ -63,6 +70,66 @@ def remainder_states(
     if drop_isolated:
         out[left & isolated_cells(left)] = UNKNOWN
     return out
+
+
+def remainder_cells(
+    shape: tuple[int, int],
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    drop_isolated: bool,
+) -> OccupiedCells:
+    """The occupied cells of :func:`remainder_states`, built from the cells left alone.
+
+    The same cells as ``remainder_states(...) == OCCUPIED`` (for a method that does not use
+    free space), as a crop of the box of the cells left: the cost follows those cells, not
+    the grid. Isolated cells are found on that box (a cell outside it is never occupied).
+    """
+    r, c = rows[remaining], cols[remaining]
+    if r.size == 0:
+        return OccupiedCells(np.zeros((0, 0), dtype=bool), (0, 0), shape)
+    r0, c0 = int(r.min()), int(c.min())
+    grid = np.zeros((int(r.max()) - r0 + 1, int(c.max()) - c0 + 1), dtype=bool)
+    grid[r - r0, c - c0] = True
+    if drop_isolated:
+        grid &= ~isolated_cells(grid)
+    return OccupiedCells(grid, (c0, r0), shape)
+
+
+def moving_remainder(
+    working: OccupancyMap,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    uses_free: bool,
+    drop_isolated: bool,
+    as_cells: bool,
+) -> NDArray[np.int8] | OccupiedCells:
+    """What the registration is given of the cells left: their occupied cells
+    (:func:`remainder_cells`) when it takes them (``as_cells``) and does not use free space,
+    else the grid of :func:`remainder_states`."""
+    if as_cells and not uses_free:
+        return remainder_cells(working.shape, rows, cols, remaining, drop_isolated)
+    return remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
+
+
+def candidates_of(
+    registrar: Registrar,
+    prepared: Any,
+    moving: NDArray[np.int8] | OccupiedCells,
+    max_candidates: int,
+) -> list[Candidate]:
+    """``registrar.candidates`` of what :func:`moving_remainder` returns."""
+    if isinstance(moving, OccupiedCells):
+        return cast(CellsRegistrar, registrar).candidates(prepared, moving, max_candidates)
+    return registrar.candidates(prepared, moving, max_candidates)
+
+
+def occupied_count(moving: NDArray[np.int8] | OccupiedCells) -> int:
+    """Occupied cells of what :func:`moving_remainder` returns."""
+    if isinstance(moving, OccupiedCells):
+        return moving.count
+    return int(np.count_nonzero(moving == OCCUPIED))
 
 
 def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:

@@ -73,7 +73,7 @@ from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
 from . import _refine, _spectral
-from .base import Candidate
+from .base import Candidate, OccupiedCells
 
 __all__ = ["IFMIRegistrar"]
 
@@ -121,7 +121,7 @@ class _Memo:
     """
 
     key: tuple[Any, ...]  # options that shape the hypotheses
-    states: NDArray[np.int8]
+    states: NDArray[np.int8] | OccupiedCells
     moving: _Moving
     angle_correlation: NDArray[np.float64]
     hypotheses: dict[float, list[tuple[NDArray[np.float64], float]]] = field(default_factory=dict)
@@ -179,6 +179,15 @@ def _occupied_box(
     if box is None:
         raise MapError(f"the {role} has no occupied cell, there is nothing {purpose}")
     return occ, box
+
+
+def _same_moving(a: NDArray[np.int8] | OccupiedCells, b: NDArray[np.int8] | OccupiedCells) -> bool:
+    """Whether two moving maps (grids or occupied cells) are the same, by content."""
+    if isinstance(a, OccupiedCells) and isinstance(b, OccupiedCells):
+        return a.same(b)
+    if isinstance(a, OccupiedCells) or isinstance(b, OccupiedCells):
+        return False
+    return bool(np.array_equal(a, b))
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> None:
@@ -250,6 +259,9 @@ class IFMIRegistrar:
     name = "ifmi"
     #: iFMI registers the occupied cells only (see the module docstring).
     uses_free_space = False
+    #: ``candidates`` takes the moving map as :class:`~brokenness.registration.base.OccupiedCells`
+    #: too (it only looks at the occupied cells).
+    accepts_cells = True
 
     def __init__(
         self,
@@ -387,10 +399,17 @@ class IFMIRegistrar:
             sig = ref.signatures[factor] = self._signature(self._level(ref, factor))
         return sig
 
-    def _moving(self, moving_states: NDArray[np.int8], ref: _Prepared) -> _Moving:
-        states = np.asarray(moving_states)
-        occ, (r0, r1, c0, c1) = _occupied_box(states, "moving map", "to register")
-        crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
+    def _moving(self, moving: NDArray[np.int8] | OccupiedCells, ref: _Prepared) -> _Moving:
+        if isinstance(moving, OccupiedCells):
+            box = _spectral.bounding_box(moving.crop)
+            if box is None:
+                raise MapError("the moving map has no occupied cell, there is nothing to register")
+            dc, dr = moving.offset
+            r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
+            crop = np.ascontiguousarray(moving.crop[box[0] : box[1], box[2] : box[3]])
+        else:
+            occ, (r0, r1, c0, c1) = _occupied_box(np.asarray(moving), "moving map", "to register")
+            crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
         # a moving map much larger than the reference is pooled more (bounded FFT sizes)
         extent = max(r1 - r0, c1 - c0)
         factor = max(ref.factor, math.ceil(extent / self.max_size))
@@ -459,28 +478,43 @@ class IFMIRegistrar:
             self.agree_cells,
         )
 
-    def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8]) -> _Memo:
+    def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8] | OccupiedCells) -> _Memo:
         """The analysis of ``moving_states`` against ``ref``, remembered for later calls.
 
         The last :data:`_MEMOS` moving maps are remembered: a step of the recursion asks for
         the hypotheses of what is left of the map with the usual and the wider search, which
         share the analysis, and the recovery registers two sets of suspect cells in turn.
         """
-        states = np.asarray(moving_states)
+        states: NDArray[np.int8] | OccupiedCells
+        if isinstance(moving_states, OccupiedCells):
+            states = moving_states
+        else:
+            states = np.asarray(moving_states)
         key = self._memo_key()
         for memo in ref.memos:
-            if memo.key == key and np.array_equal(memo.states, states):
+            if memo.key == key and _same_moving(memo.states, states):
                 return memo
         mov = self._moving(states, ref)
-        memo = _Memo(key, states.copy(), mov, self._angle_correlation(ref, mov))
+        kept = (
+            OccupiedCells(states.crop.copy(), states.offset, states.shape)
+            if isinstance(states, OccupiedCells)
+            else states.copy()
+        )
+        memo = _Memo(key, kept, mov, self._angle_correlation(ref, mov))
         ref.memos.append(memo)
         del ref.memos[:-_MEMOS]
         return memo
 
     def candidates(
-        self, prepared_reference: _Prepared, moving_states: NDArray[np.int8], max_candidates: int
+        self,
+        prepared_reference: _Prepared,
+        moving_states: NDArray[np.int8] | OccupiedCells,
+        max_candidates: int,
     ) -> list[Candidate]:
         """Ranked hypotheses moving -> reference (best first, at least one).
+
+        ``moving_states`` is the moving map's grid of cell states, or its occupied cells
+        (:class:`~brokenness.registration.base.OccupiedCells`: the same hypotheses).
 
         Raises
         ------
