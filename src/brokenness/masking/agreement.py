@@ -75,6 +75,20 @@ class ReferenceIndex:
         )
 
     @cached_property
+    def occupied(self) -> NDArray[np.bool_]:
+        """The reference's occupied cells (computed once; do not modify)."""
+        return self.reference.occupied
+
+    @cached_property
+    def known(self) -> NDArray[np.bool_]:
+        """The reference's known (occupied or free) cells (computed once; do not modify)."""
+        return self.reference.known
+
+    @cached_property
+    def _chance(self) -> dict[float, float]:
+        return {}
+
+    @cached_property
     def tree(self) -> cKDTree:
         """Nearest-neighbour index of ``occupied_points`` (Euclidean)."""
         return cKDTree(self.occupied_points)
@@ -88,7 +102,7 @@ class ReferenceIndex:
         up to 4 million cells it is built for) so that ``cv2.remap`` can look it up.
         """
         _, labels = cv2.distanceTransformWithLabels(
-            np.where(self.reference.occupied, 0, 1).astype(np.uint8),
+            np.logical_not(self.occupied).view(np.uint8),
             cv2.DIST_L2,
             cv2.DIST_MASK_PRECISE,
             labelType=cv2.DIST_LABEL_PIXEL,
@@ -170,9 +184,18 @@ def unmatched_reference(
     cols = np.rint(p[:, 0]).astype(np.intp)
     rows = np.rint(p[:, 1]).astype(np.intp)
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    hit = np.zeros((h, w), dtype=bool)
-    hit[rows[inside], cols[inside]] = True
-    return reference_occupied & ~within_manhattan(hit, threshold)
+    out = reference_occupied.copy()
+    if not inside.any():
+        return out
+    rows, cols = rows[inside], cols[inside]
+    # only the box of the hits, widened by the radius, can change
+    radius = max(int(np.floor(threshold)), 0)
+    r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, h)
+    c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, w)
+    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    hit[rows - r0, cols - c0] = True
+    out[r0:r1, c0:c1] &= ~within_manhattan(hit, threshold)
+    return out
 
 
 def within_manhattan(mask: NDArray[np.bool_], threshold: float) -> NDArray[np.bool_]:

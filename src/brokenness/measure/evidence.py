@@ -133,11 +133,10 @@ def contradiction(
     -------
     Contradiction
     """
-    reference = index.reference
-    known = reference.known
-    occupied_ref = reference.occupied
+    known = index.known
+    occupied_ref = index.occupied
     n_known = int(np.count_nonzero(known))
-    chance = float(np.count_nonzero(occupied_ref & known)) / n_known if n_known else 0.0
+    chance = float(np.count_nonzero(occupied_ref)) / n_known if n_known else 0.0
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
     states = working.states

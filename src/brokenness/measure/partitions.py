@@ -54,16 +54,19 @@ def with_fringe(
     pass for a partition of its own; it belongs to the partition it touches.
     """
     near = lookup_distance(index.occupied_distance, transform.apply(pts)) <= loose
-    if np.array_equal(near, agree):
+    if np.array_equal(near, agree) or not near.any():
         return agree
-    cols = pts[:, 0].astype(np.intp)
-    rows = pts[:, 1].astype(np.intp)
+    # components of the loosely agreeing cells, on the box of those cells (a component
+    # holds no other cell, so a larger grid would give the same ones)
+    cols = pts[near, 0].astype(np.intp)
+    rows = pts[near, 1].astype(np.intp)
     c0, r0 = cols.min(), rows.min()
     grid = np.zeros((rows.max() - r0 + 1, cols.max() - c0 + 1), np.uint8)
-    grid[rows[near] - r0, cols[near] - c0] = 1
+    grid[rows - r0, cols - c0] = 1
     _, comp = cv2.connectedComponents(grid, connectivity=8)
-    seeds = np.unique(comp[rows[agree] - r0, cols[agree] - c0])
-    touched = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
+    seeds = np.unique(comp[rows[agree[near]] - r0, cols[agree[near]] - c0])
+    touched = np.zeros(pts.shape[0], dtype=bool)
+    touched[near] = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
     return agree | (near & touched)
 
 

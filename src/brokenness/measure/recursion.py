@@ -115,6 +115,7 @@ from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
 from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
+from ..registration._spectral import bounding_box
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -236,7 +237,8 @@ def compute_brokenness(
     opts = _options(options, overrides)
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
-    if original.n_occupied == 0:
+    n_occupied = original.n_occupied
+    if n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
     check_threshold(opts.loose, ref.shape)  # the neighbourhood it implies fits the limits
     index = ReferenceIndex.build(ref)  # raises for an empty reference
@@ -256,10 +258,10 @@ def compute_brokenness(
     if thorough is not None:
         as_cells = as_cells and bool(getattr(thorough, "accepts_cells", False))
     settings = Settings.of(
-        opts, points.shape[0], uses_free, walls_connected(index.reference), as_cells
+        opts, points.shape[0], uses_free, walls_connected(index.reference, index.occupied), as_cells
     )
     whole = registrar.prepare_reference(
-        reference_states(index.reference, index.reference.occupied, uses_free)
+        reference_states(index.reference, index.occupied, uses_free)
     )
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
@@ -275,8 +277,11 @@ def compute_brokenness(
         found, points, working, to_working, original, ref, index
     )
     labels = labels_in_original_grid(labels_working, working, to_working, original)
-    n_occupied = original.n_occupied
-    assigned = int(np.count_nonzero(labels >= 0))
+    # the cells of each partition, counted at the original map's occupied cells
+    at = points if working is original else cell_points(original.occupied)
+    lab = labels[at[:, 1].astype(np.intp), at[:, 0].astype(np.intp)]
+    sizes = np.bincount(lab[lab >= 0], minlength=len(found_partitions))
+    assigned = int(sizes.sum())
     acceptance: list[float | None] = [None] * len(found_partitions)
     if method == "random-walk":  # the random walk's own quality measure, per partition
         from ..registration.random_walk import partition_acceptance
@@ -287,8 +292,8 @@ def compute_brokenness(
     partitions = tuple(
         Partition(
             index=p.index,
-            cells=int(np.count_nonzero(labels == p.index)),
-            fraction=float(np.count_nonzero(labels == p.index)) / n_occupied,
+            cells=int(sizes[p.index]),
+            fraction=float(sizes[p.index]) / n_occupied,
             transform=p.transform,
             confidence=p.confidence,
             rotation_offset_deg=p.rotation_offset_deg,
@@ -316,6 +321,23 @@ def compute_brokenness(
         reason=reason,
         contradiction=map_ratio,
     )
+
+
+def _near_claimed(
+    occupied: NDArray[np.bool_], available: NDArray[np.bool_], threshold: float
+) -> tuple[NDArray[np.bool_], tuple[int, int]]:
+    """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
+    and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
+    (no such cell lies outside it)."""
+    claimed = occupied & ~available
+    box = bounding_box(claimed)
+    if box is None:
+        return np.zeros((0, 0), dtype=bool), (0, 0)
+    radius = max(int(math.floor(threshold)), 0)
+    h, w = claimed.shape
+    r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
+    c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
+    return within_manhattan(claimed[r0:r1, c0:c1], threshold), (c0, r0)
 
 
 def _region_candidates(
@@ -443,7 +465,7 @@ def _recurse(
     uses_free, drop_isolated = settings.uses_free, settings.drop_isolated
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
-    reference_occupied = index.reference.occupied
+    reference_occupied = index.occupied  # never modified: each step makes a new mask
     p0 = index.chance_agreement(threshold)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[Found] = []
@@ -499,10 +521,9 @@ def _recurse(
             use_rest = rest is not None
             if not use_rest and best_whole is not None and found:
                 if near_claimed is None:
-                    near_claimed = within_manhattan(
-                        index.reference.occupied & ~reference_occupied, threshold
-                    )
-                use_rest = mostly_claimed(best_whole, left_points, near_claimed, threshold)
+                    near_claimed = _near_claimed(index.occupied, reference_occupied, threshold)
+                claimed, offset = near_claimed
+                use_rest = mostly_claimed(best_whole, left_points, claimed, threshold, offset)
             if best_whole is not None and use_rest:
                 if rest is None:
                     rest = registrar.prepare_reference(

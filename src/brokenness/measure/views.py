@@ -156,13 +156,15 @@ def reference_states(
     return withdraw(reference.states, withdrawn, available)
 
 
-def walls_connected(reference: OccupancyMap) -> bool:
+def walls_connected(reference: OccupancyMap, occupied: NDArray[np.bool_] | None = None) -> bool:
     """True when at most :data:`ISOLATED_SHARE` of the reference's occupied cells are isolated.
 
     Then isolated cells of the map are noise and are hidden from the registration; if the
     reference itself is dotted (a sparse probabilistic map), they are structure and stay.
+    ``occupied``: the reference's occupied cells, if already at hand.
     """
-    occupied = reference.occupied
+    if occupied is None:
+        occupied = reference.occupied
     return bool(
         np.count_nonzero(isolated_cells(occupied)) <= ISOLATED_SHARE * np.count_nonzero(occupied)
     )
