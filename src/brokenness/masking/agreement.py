@@ -149,13 +149,20 @@ class ReferenceIndex:
 
         The fraction of known reference cells within ``threshold`` (Manhattan) of an occupied
         reference cell: the agreement that noise gets by luck. Used by the stopping rule.
+        Computed once per threshold.
         """
-        known = self.reference.known
+        cached = self._chance.get(threshold)
+        if cached is not None:
+            return cached
+        known = self.known
         n_known = int(np.count_nonzero(known))
         if n_known == 0:
-            return 1.0
-        near = (self.occupied_distance <= threshold) & known
-        return float(np.count_nonzero(near)) / n_known
+            value = 1.0
+        else:
+            near = (self.occupied_distance <= threshold) & known
+            value = float(np.count_nonzero(near)) / n_known
+        self._chance[threshold] = value
+        return value
 
 
 def unmatched_reference(

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from ..grid import FREE, OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex
 from .partitions import Found
-from .views import isolated_cells
+from .views import isolated_points
 
 __all__ = ["MAP_RATIO", "Contradiction", "contradiction"]
 
@@ -172,7 +172,7 @@ def contradiction(
     px, py = points[:, 0].astype(np.intp) - c0, points[:, 1].astype(np.intp) - r0
     in_box = (py >= 0) & (py < r1 - r0) & (px >= 0) & (px < c1 - c0)
     px, py, owner = px[in_box], py[in_box], owner[in_box]  # row-major, as the box's labels
-    is_source = (owner >= 0) & ~isolated_cells(occupied)[py, px]
+    is_source = (owner >= 0) & ~isolated_points(py, px)  # the box's walls are these points
     if not is_source.any():
         return empty
     del occupied
