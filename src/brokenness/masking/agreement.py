@@ -68,11 +68,13 @@ class ReferenceIndex:
         if not occupied.any():
             raise MapError("the reference map has no occupied cell")
         points = cell_points(occupied)
-        return cls(
+        index = cls(
             reference=reference,
             occupied_distance=manhattan_distance_map(occupied),
             occupied_points=points,
         )
+        index.__dict__["occupied"] = occupied  # the cached property, already at hand
+        return index
 
     @cached_property
     def occupied(self) -> NDArray[np.bool_]:

@@ -153,8 +153,9 @@ def contradiction(
     radius = max(int(math.ceil(2.0 * threshold)), 1)
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     near_wall = cv2.dilate(occupied.view(np.uint8), disc).view(bool)
-    clear_mask = (box == FREE) & ~near_wall
-    del near_wall
+    del occupied
+    clear_mask = np.logical_not(near_wall, out=near_wall)  # in place: no fresh grids
+    clear_mask &= box == FREE
     n_clear = int(np.count_nonzero(clear_mask))
     if n_clear == 0:
         return empty
@@ -175,7 +176,6 @@ def contradiction(
     is_source = (owner >= 0) & ~isolated_points(py, px)  # the box's walls are these points
     if not is_source.any():
         return empty
-    del occupied
     # the nearest source wall of every cell, on a grid of 2 x 2 blocks (a quarter of the
     # memory and time; a block belongs to the partition of a source wall in it)
     coarse_shape = (-(-(r1 - r0) // 2), -(-(c1 - c0) // 2))

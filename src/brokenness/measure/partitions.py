@@ -161,7 +161,7 @@ def assemble(
     """Sort partitions by size, relate them to the largest, and draw the label image."""
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     labels = np.full(working.shape, NOT_OCCUPIED, dtype=np.int16)
-    labels[working.occupied] = UNASSIGNED
+    labels[points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)] = UNASSIGNED
     partitions: list[Partition] = []
     if not found:
         return partitions, labels

@@ -139,7 +139,7 @@ from .views import (
     candidates_of,
     moving_remainder,
     occupied_count,
-    reference_states,
+    prepared_reference,
     walls_connected,
 )
 
@@ -237,7 +237,8 @@ def compute_brokenness(
     opts = _options(options, overrides)
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
-    n_occupied = original.n_occupied
+    original_points = cell_points(original.occupied)  # (N, 2), row-major order
+    n_occupied = original_points.shape[0]
     if n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
     check_threshold(opts.loose, ref.shape)  # the neighbourhood it implies fits the limits
@@ -252,17 +253,19 @@ def compute_brokenness(
     if method == "ifmi":
         thorough = make_registrar(method, **{**kwargs, **_IFMI_THOROUGH_OPTIONS})
 
-    points = cell_points(working.occupied)  # (N, 2), row-major order
+    points = original_points if working is original else cell_points(working.occupied)
     uses_free = bool(getattr(registrar, "uses_free_space", True))
     as_cells = bool(getattr(registrar, "accepts_cells", False))
     if thorough is not None:
         as_cells = as_cells and bool(getattr(thorough, "accepts_cells", False))
     settings = Settings.of(
-        opts, points.shape[0], uses_free, walls_connected(index.reference, index.occupied), as_cells
+        opts,
+        points.shape[0],
+        uses_free,
+        walls_connected(index.reference, index.occupied_points),
+        as_cells,
     )
-    whole = registrar.prepare_reference(
-        reference_states(index.reference, index.occupied, uses_free)
-    )
+    whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
     if thorough is not None:  # every cell given to its best partition, as reassign does
@@ -278,7 +281,7 @@ def compute_brokenness(
     )
     labels = labels_in_original_grid(labels_working, working, to_working, original)
     # the cells of each partition, counted at the original map's occupied cells
-    at = points if working is original else cell_points(original.occupied)
+    at = original_points
     lab = labels[at[:, 1].astype(np.intp), at[:, 0].astype(np.intp)]
     sizes = np.bincount(lab[lab >= 0], minlength=len(found_partitions))
     assigned = int(sizes.sum())
@@ -526,8 +529,12 @@ def _recurse(
                 use_rest = mostly_claimed(best_whole, left_points, claimed, threshold, offset)
             if best_whole is not None and use_rest:
                 if rest is None:
-                    rest = registrar.prepare_reference(
-                        reference_states(index.reference, reference_occupied, uses_free)
+                    rest = prepared_reference(
+                        registrar,
+                        index.reference,
+                        reference_occupied,
+                        uses_free,
+                        settings.as_cells,
                     )
                 if widen_rest:
                     fresh_rest = candidates_of(attempt, rest, moving_states, limit)

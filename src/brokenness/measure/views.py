@@ -20,6 +20,7 @@ from ..registration.base import Candidate, CellsRegistrar, OccupiedCells, Regist
 
 __all__ = [
     "candidates_of",
+    "prepared_reference",
     "isolated_cells",
     "isolated_points",
     "moving_remainder",
@@ -127,6 +128,23 @@ def candidates_of(
     return registrar.candidates(prepared, moving, max_candidates)
 
 
+def prepared_reference(
+    registrar: Registrar,
+    reference: OccupancyMap,
+    available: NDArray[np.bool_],
+    uses_free: bool,
+    as_cells: bool,
+) -> Any:
+    """``registrar.prepare_reference`` of the reference less the walls no longer
+    ``available`` (:func:`reference_states`): given as its occupied cells (``available``
+    itself, no copy) when the registration takes them (``as_cells``) and does not use free
+    space."""
+    if as_cells and not uses_free:
+        cells = OccupiedCells(available, (0, 0), reference.shape)
+        return cast(CellsRegistrar, registrar).prepare_reference(cells)
+    return registrar.prepare_reference(reference_states(reference, available, uses_free))
+
+
 def occupied_count(moving: NDArray[np.int8] | OccupiedCells) -> int:
     """Occupied cells of what :func:`moving_remainder` returns."""
     if isinstance(moving, OccupiedCells):
@@ -179,14 +197,15 @@ def reference_states(
     return withdraw(reference.states, withdrawn, available)
 
 
-def walls_connected(reference: OccupancyMap, occupied: NDArray[np.bool_] | None = None) -> bool:
+def walls_connected(reference: OccupancyMap, points: NDArray[np.float64] | None = None) -> bool:
     """True when at most :data:`ISOLATED_SHARE` of the reference's occupied cells are isolated.
 
     Then isolated cells of the map are noise and are hidden from the registration; if the
     reference itself is dotted (a sparse probabilistic map), they are structure and stay.
-    ``occupied``: the reference's occupied cells, if already at hand.
+    ``points``: the reference's occupied cells ``(x, y)``, if already at hand.
     """
-    if occupied is None:
-        occupied = reference.occupied
-    rows, cols = np.nonzero(occupied)
+    if points is None:
+        rows, cols = np.nonzero(reference.occupied)
+    else:
+        rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     return bool(np.count_nonzero(isolated_points(rows, cols)) <= ISOLATED_SHARE * rows.size)

@@ -168,12 +168,16 @@ class Registrar(Protocol):
 
 
 class CellsRegistrar(Registrar, Protocol):
-    """A registration whose ``candidates`` also takes the moving map as
+    """A registration whose ``prepare_reference`` and ``candidates`` also take the maps as
     :class:`OccupiedCells` (a method that looks at occupied cells only; its
     ``accepts_cells`` is True): the recursion then builds no grid of the map's size per
     step."""
 
     accepts_cells: bool
+
+    def prepare_reference(self, reference_states: NDArray[np.int8] | OccupiedCells) -> Any:
+        """Precompute what depends on the reference only."""
+        ...
 
     def candidates(
         self,

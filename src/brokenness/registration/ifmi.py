@@ -181,6 +181,19 @@ def _occupied_box(
     return occ, box
 
 
+def _window(cells: OccupiedCells, r0: int, r1: int, c0: int, c1: int) -> NDArray[np.bool_]:
+    """The occupied cells of rows ``r0:r1`` and columns ``c0:c1`` of the grid (contiguous)."""
+    dc, dr = cells.offset
+    h, w = cells.crop.shape
+    if dr <= r0 and r1 <= dr + h and dc <= c0 and c1 <= dc + w:
+        return np.ascontiguousarray(cells.crop[r0 - dr : r1 - dr, c0 - dc : c1 - dc])
+    out = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    a0, a1, b0, b1 = max(r0, dr), min(r1, dr + h), max(c0, dc), min(c1, dc + w)
+    if a0 < a1 and b0 < b1:
+        out[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0] = cells.crop[a0 - dr : a1 - dr, b0 - dc : b1 - dc]
+    return out
+
+
 def _same_moving(a: NDArray[np.int8] | OccupiedCells, b: NDArray[np.int8] | OccupiedCells) -> bool:
     """Whether two moving maps (grids or occupied cells) are the same, by content."""
     if isinstance(a, OccupiedCells) and isinstance(b, OccupiedCells):
@@ -349,25 +362,41 @@ class IFMIRegistrar:
         return _spectral.log_polar_signature(image, window, size, grid, self.workers)
 
     # -- protocol -----------------------------------------------------------------------------
-    def prepare_reference(self, reference_states: NDArray[np.int8]) -> _Prepared:
+    def prepare_reference(self, reference_states: NDArray[np.int8] | OccupiedCells) -> _Prepared:
         """Crop, pool and transform the reference once (see :class:`IFMIRegistrar`).
+
+        ``reference_states``: the reference's grid of cell states, or its occupied cells
+        (:class:`~brokenness.registration.base.OccupiedCells`; the same preparation).
 
         Raises
         ------
         MapError
             If the reference is not 2D or has no occupied cell.
         """
-        states = np.asarray(reference_states)
-        occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
+        if isinstance(reference_states, OccupiedCells):
+            cells = reference_states
+            box = _spectral.bounding_box(cells.crop)
+            if box is None:
+                raise MapError(
+                    "the reference has no occupied cell, there is nothing to register to"
+                )
+            dc, dr = cells.offset
+            r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
+            h, w = cells.shape
+        else:
+            states = np.asarray(reference_states)
+            occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
+            cells = OccupiedCells(occ, (0, 0), (int(states.shape[0]), int(states.shape[1])))
+            h, w = cells.shape
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
         prepared = _Prepared(
-            shape=(int(states.shape[0]), int(states.shape[1])),
+            shape=(h, w),
             factor=factor,
             rotation_factor=rot_factor,
             offset=(c0, r0),
-            crop=np.ascontiguousarray(occ[r0:r1, c0:c1]),
+            crop=_window(cells, r0, r1, c0, c1),
             distance=None,
             distance_offset=(0, 0),
         )
@@ -375,11 +404,12 @@ class IFMIRegistrar:
             # The distance map is only read near the reference's walls (within the inlier
             # radius of the refinement), so it covers their bounding box and a margin: real
             # maps often have wide unknown borders.
-            h, w = occ.shape
             margin = max(_DISTANCE_MARGIN, 2 * factor + 8)
             dr0, dr1 = max(r0 - margin, 0), min(r1 + margin, h)
             dc0, dc1 = max(c0 - margin, 0), min(c1 + margin, w)
-            prepared.distance = _refine.distance_field(_refine.edges(occ[dr0:dr1, dc0:dc1]))
+            prepared.distance = _refine.distance_field(
+                _refine.edges(_window(cells, dr0, dr1, dc0, dc1))
+            )
             prepared.distance_offset = (dc0, dr0)
         self._reference_signature(prepared, rot_factor)  # the usual work, done up front
         self._level(prepared, factor)
