@@ -111,6 +111,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._memory import small_pages
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
@@ -233,6 +234,17 @@ def compute_brokenness(
     >>> compute_brokenness(room, room).degree
     0
     """
+    with small_pages():  # fresh grids without huge-page compaction (see brokenness._memory)
+        return _compute(map, reference, options, overrides)
+
+
+def _compute(
+    map: MapLike,  # noqa: A002 - the paper's name
+    reference: MapLike,
+    options: BrokennessOptions | None,
+    overrides: dict[str, Any],
+) -> BrokennessResult:
+    """:func:`compute_brokenness`."""
     started = time.perf_counter()
     opts = _options(options, overrides)
     original = _as_map(map, "map")
@@ -310,7 +322,7 @@ def compute_brokenness(
     )
     parameters = opts.to_dict() | {"working_resolution": working.resolution}
     if reason is not None:
-        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=2)
+        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=3)
     return BrokennessResult(
         degree=len(partitions) - 1 if reason is None else None,
         partitions=partitions,
