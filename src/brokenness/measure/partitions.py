@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
@@ -20,6 +21,7 @@ __all__ = [
     "JOIN_SHARE",
     "Found",
     "assemble",
+    "cell_components",
     "consolidate",
     "drop_redundant",
     "labels_in_original_grid",
@@ -56,18 +58,39 @@ def with_fringe(
     near = lookup_distance(index.occupied_distance, transform.apply(pts)) <= loose
     if np.array_equal(near, agree) or not near.any():
         return agree
-    # components of the loosely agreeing cells, on the box of those cells (a component
-    # holds no other cell, so a larger grid would give the same ones)
-    cols = pts[near, 0].astype(np.intp)
-    rows = pts[near, 1].astype(np.intp)
-    c0, r0 = cols.min(), rows.min()
-    grid = np.zeros((rows.max() - r0 + 1, cols.max() - c0 + 1), np.uint8)
-    grid[rows - r0, cols - c0] = 1
-    _, comp = cv2.connectedComponents(grid, connectivity=8)
-    seeds = np.unique(comp[rows[agree[near]] - r0, cols[agree[near]] - c0])
+    comp = cell_components(pts[near, 1].astype(np.intp), pts[near, 0].astype(np.intp))
+    seeds = np.unique(comp[agree[near]])
     touched = np.zeros(pts.shape[0], dtype=bool)
-    touched[near] = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
+    touched[near] = np.isin(comp, seeds)
     return agree | (near & touched)
+
+
+def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.int32]:
+    """The 8-connected component of each of the given distinct cells (numbered from 0).
+
+    The components of the cells alone, as a graph of neighbouring cells (found by sorted
+    lookups of each cell's four forward neighbours): the cost follows the cells, not the
+    grid of their box.
+    """
+    n = rows.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int32)
+    # a column of margin on each side, so that no neighbour wraps into the next row
+    width = int(cols.max()) - int(cols.min()) + 3
+    keys = (rows - int(rows.min())) * width + (cols - int(cols.min()) + 1)
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    heads, tails = [], []
+    for step in (1, width - 1, width, width + 1):  # right, and the three below
+        at = np.searchsorted(ordered, keys + step)
+        at[at == n] = 0
+        hit = ordered[at] == keys + step
+        heads.append(np.flatnonzero(hit))
+        tails.append(order[at[hit]])
+    head, tail = np.concatenate(heads), np.concatenate(tails)
+    graph = coo_matrix((np.ones(head.size, dtype=np.int8), (head, tail)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return np.asarray(labels, dtype=np.int32)
 
 
 def merge_target(
