@@ -284,6 +284,7 @@ def _compute(
         found = recover(found, points, working, index, thorough, whole, settings)
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    del whole  # the prepared reference (its distance map): no registration from here on
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)

@@ -121,7 +121,7 @@ class _Memo:
     """
 
     key: tuple[Any, ...]  # options that shape the hypotheses
-    states: NDArray[np.int8] | OccupiedCells
+    states: NDArray[np.int8] | _Cells
     moving: _Moving
     angle_correlation: NDArray[np.float64]
     hypotheses: dict[float, list[tuple[NDArray[np.float64], float]]] = field(default_factory=dict)
@@ -194,11 +194,39 @@ def _window(cells: OccupiedCells, r0: int, r1: int, c0: int, c1: int) -> NDArray
     return out
 
 
-def _same_moving(a: NDArray[np.int8] | OccupiedCells, b: NDArray[np.int8] | OccupiedCells) -> bool:
-    """Whether two moving maps (grids or occupied cells) are the same, by content."""
-    if isinstance(a, OccupiedCells) and isinstance(b, OccupiedCells):
-        return a.same(b)
-    if isinstance(a, OccupiedCells) or isinstance(b, OccupiedCells):
+@dataclass(frozen=True, eq=False)
+class _Cells:
+    """What a memo keeps of :class:`OccupiedCells` to recognise them: the grid's and the
+    crop's shapes, the offset, and the flat indices of the cells in the crop (a few bytes per
+    cell, not a copy of the crop)."""
+
+    shape: tuple[int, int]
+    offset: tuple[int, int]
+    crop_shape: tuple[int, ...]
+    flat: NDArray[np.intp]
+
+    @classmethod
+    def of(cls, cells: OccupiedCells) -> _Cells:
+        return cls(cells.shape, cells.offset, cells.crop.shape, np.flatnonzero(cells.crop))
+
+    def same(self, cells: OccupiedCells) -> bool:
+        if (self.shape, self.offset, self.crop_shape) != (
+            cells.shape,
+            cells.offset,
+            cells.crop.shape,
+        ):
+            return False
+        crop = cells.crop.reshape(-1)
+        # as many cells, and all of them at the remembered places
+        return self.flat.size == int(np.count_nonzero(crop)) and bool(crop[self.flat].all())
+
+
+def _same_moving(a: NDArray[np.int8] | _Cells, b: NDArray[np.int8] | OccupiedCells) -> bool:
+    """Whether a remembered moving map and a new one (grids or occupied cells) are the same,
+    by content."""
+    if isinstance(a, _Cells):
+        return isinstance(b, OccupiedCells) and a.same(b)
+    if isinstance(b, OccupiedCells):
         return False
     return bool(np.array_equal(a, b))
 
@@ -525,11 +553,7 @@ class IFMIRegistrar:
             if memo.key == key and _same_moving(memo.states, states):
                 return memo
         mov = self._moving(states, ref)
-        kept = (
-            OccupiedCells(states.crop.copy(), states.offset, states.shape)
-            if isinstance(states, OccupiedCells)
-            else states.copy()
-        )
+        kept = _Cells.of(states) if isinstance(states, OccupiedCells) else states.copy()
         memo = _Memo(key, kept, mov, self._angle_correlation(ref, mov))
         ref.memos.append(memo)
         del ref.memos[:-_MEMOS]
