@@ -111,3 +111,20 @@ def test_ifmi_gives_the_same_hypotheses_from_cells_as_from_the_grid() -> None:
     from_cells = reg.candidates(reg.prepare_reference(ref_cells), cells, 4)
     assert [c.transform for c in from_cells] == [c.transform for c in from_grid]
     assert [c.confidence for c in from_cells] == [c.confidence for c in from_grid]
+
+
+def test_sparse_cells_take_the_lookup_paths_with_the_same_answers() -> None:
+    # few cells in a large box: lookups at the cells and the graph of the cells, not the box
+    rng = np.random.default_rng(5)
+    grid = np.zeros((400, 500), np.uint8)
+    grid.flat[rng.choice(grid.size, 800, replace=False)] = 1
+    grid[100, 10:200] = grid[150:300, 250] = 1
+    rows, cols = np.nonzero(grid)
+    assert grid.size > 64 * rows.size  # the sparse case
+    np.testing.assert_array_equal(
+        isolated_points(rows, cols), isolated_cells(grid.astype(bool))[rows, cols]
+    )
+    _, comp = cv2.connectedComponents(grid, connectivity=8)
+    got = cell_components(rows, cols)
+    pairs = set(zip(got.tolist(), comp[rows, cols].tolist(), strict=True))
+    assert len(pairs) == len(set(got.tolist())) == len(set(comp[rows, cols].tolist())) > 100

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
@@ -65,6 +66,11 @@ def with_fringe(
     return agree | (near & touched)
 
 
+#: Cells of a box per given cell up to which labelling the box costs less than the graph of
+#: the cells (small maps; the components are the same).
+_DENSE_BOX = 64
+
+
 def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.int32]:
     """The 8-connected component of each of the given distinct cells (numbered from 0).
 
@@ -75,6 +81,13 @@ def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[n
     n = rows.shape[0]
     if n == 0:
         return np.zeros(0, dtype=np.int32)
+    r0, c0 = int(rows.min()), int(cols.min())
+    height = int(rows.max()) - r0 + 1
+    if height * (int(cols.max()) - c0 + 1) <= _DENSE_BOX * n:  # small box: label it directly
+        grid = np.zeros((height, int(cols.max()) - c0 + 1), np.uint8)
+        grid[rows - r0, cols - c0] = 1
+        _, comp = cv2.connectedComponents(grid, connectivity=8)
+        return np.asarray(comp[rows - r0, cols - c0], dtype=np.int32)
     # a column of margin on each side, so that no neighbour wraps into the next row
     width = int(cols.max()) - int(cols.min()) + 3
     keys = (rows - int(rows.min())) * width + (cols - int(cols.min()) + 1)
