@@ -128,3 +128,15 @@ def test_sparse_cells_take_the_lookup_paths_with_the_same_answers() -> None:
     got = cell_components(rows, cols)
     pairs = set(zip(got.tolist(), comp[rows, cols].tolist(), strict=True))
     assert len(pairs) == len(set(got.tolist())) == len(set(comp[rows, cols].tolist())) > 100
+
+
+def test_prepared_reference_pools_its_packed_cells_at_any_factor() -> None:
+    m = load_map(DATA / "building_31.yaml")
+    reg = IFMIRegistrar()
+    prepared = reg.prepare_reference(m.states)
+    rows, cols = np.nonzero(m.occupied)
+    crop = m.occupied[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    for factor in (prepared.factor + 1, prepared.factor + 3):
+        np.testing.assert_array_equal(
+            IFMIRegistrar._level(prepared, factor), coarse_indicator(crop, factor)
+        )

@@ -58,6 +58,25 @@ _MAX_FREE = 400_000
 _CHUNK = 16_384
 
 
+#: Rows of the bands in which whole-grid masks are built (bounded temporaries).
+_BAND_ROWS = 512
+
+
+def _free_box(states: NDArray[np.int8]) -> tuple[int, int, int, int] | None:
+    """``(row0, row1, col0, col1)`` (half-open) of the free cells, or None if there are none;
+    found in bands of rows (no mask of the whole grid)."""
+    rows = np.zeros(states.shape[0], dtype=bool)
+    cols = np.zeros(states.shape[1], dtype=bool)
+    for a in range(0, states.shape[0], _BAND_ROWS):
+        free = states[a : a + _BAND_ROWS] == FREE
+        rows[a : a + _BAND_ROWS] = free.any(axis=1)
+        cols |= free.any(axis=0)
+    if not rows.any():
+        return None
+    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
+    return int(r[0]), int(r[-1]) + 1, int(c[0]), int(c[-1]) + 1
+
+
 @dataclass(frozen=True)
 class Contradiction:
     """Free-space contradiction of a set of partitions.
@@ -140,13 +159,11 @@ def contradiction(
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
     states = working.states
-    free_rows = np.flatnonzero((states == FREE).any(axis=1))
-    if k == 0 or free_rows.size == 0:
-        return empty
     # the box of the map's free cells: free space outside it does not exist
-    free_cols = np.flatnonzero((states[free_rows[0] : free_rows[-1] + 1] == FREE).any(axis=0))
-    r0, r1 = int(free_rows[0]), int(free_rows[-1]) + 1
-    c0, c1 = int(free_cols[0]), int(free_cols[-1]) + 1
+    free_box = _free_box(states)
+    if k == 0 or free_box is None:
+        return empty
+    r0, r1, c0, c1 = free_box
     box = states[r0:r1, c0:c1]
     occupied = box == OCCUPIED
     # clear free cells: farther than 2c from every map wall (a disc of radius 2c around walls)
@@ -155,7 +172,8 @@ def contradiction(
     near_wall = cv2.dilate(occupied.view(np.uint8), disc).view(bool)
     del occupied
     clear_mask = np.logical_not(near_wall, out=near_wall)  # in place: no fresh grids
-    clear_mask &= box == FREE
+    for a in range(0, clear_mask.shape[0], _BAND_ROWS):  # ... nor a temporary of the box
+        clear_mask[a : a + _BAND_ROWS] &= box[a : a + _BAND_ROWS] == FREE
     n_clear = int(np.count_nonzero(clear_mask))
     if n_clear == 0:
         return empty
@@ -183,7 +201,7 @@ def contradiction(
     block_owner[py[is_source] // 2, px[is_source] // 2] = owner[is_source]
     is_block = block_owner >= 0
     _, nearest = cv2.distanceTransformWithLabels(
-        np.where(is_block, 0, 1).astype(np.uint8),
+        np.logical_not(is_block).view(np.uint8),
         cv2.DIST_L2,
         cv2.DIST_MASK_5,
         labelType=cv2.DIST_LABEL_PIXEL,

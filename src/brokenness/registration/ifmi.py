@@ -100,7 +100,8 @@ class _Prepared:
     factor: int
     rotation_factor: int
     offset: tuple[int, int]  # (col0, row0) of the cropped reference in full cells
-    crop: NDArray[np.bool_]  # occupied cells inside the bounding box, full resolution
+    crop: NDArray[np.uint8]  # occupied cells inside the bounding box, bits packed by row
+    crop_width: int  # ... of this many columns
     distance: NDArray[np.float32] | None  # full-resolution distance map (refinement) ...
     distance_offset: tuple[int, int]  # ... of the cells from (col0, row0) on
     levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
@@ -181,12 +182,16 @@ def _occupied_box(
     return occ, box
 
 
-def _window(cells: OccupiedCells, r0: int, r1: int, c0: int, c1: int) -> NDArray[np.bool_]:
-    """The occupied cells of rows ``r0:r1`` and columns ``c0:c1`` of the grid (contiguous)."""
+def _window(
+    cells: OccupiedCells, r0: int, r1: int, c0: int, c1: int, copy: bool = True
+) -> NDArray[np.bool_]:
+    """The occupied cells of rows ``r0:r1`` and columns ``c0:c1`` of the grid (contiguous;
+    with ``copy=False`` a view of ``cells.crop`` when the window lies inside it)."""
     dc, dr = cells.offset
     h, w = cells.crop.shape
     if dr <= r0 and r1 <= dr + h and dc <= c0 and c1 <= dc + w:
-        return np.ascontiguousarray(cells.crop[r0 - dr : r1 - dr, c0 - dc : c1 - dc])
+        view = cells.crop[r0 - dr : r1 - dr, c0 - dc : c1 - dc]
+        return view if not copy else np.ascontiguousarray(view)
     out = np.zeros((r1 - r0, c1 - c0), dtype=bool)
     a0, a1, b0, b1 = max(r0, dr), min(r1, dr + h), max(c0, dc), min(c1, dc + w)
     if a0 < a1 and b0 < b1:
@@ -419,12 +424,14 @@ class IFMIRegistrar:
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
+        walls = _window(cells, r0, r1, c0, c1, copy=False)
         prepared = _Prepared(
             shape=(h, w),
             factor=factor,
             rotation_factor=rot_factor,
             offset=(c0, r0),
-            crop=_window(cells, r0, r1, c0, c1),
+            crop=np.packbits(walls, axis=1),
+            crop_width=c1 - c0,
             distance=None,
             distance_offset=(0, 0),
         )
@@ -435,12 +442,14 @@ class IFMIRegistrar:
             margin = max(_DISTANCE_MARGIN, 2 * factor + 8)
             dr0, dr1 = max(r0 - margin, 0), min(r1 + margin, h)
             dc0, dc1 = max(c0 - margin, 0), min(c1 + margin, w)
-            prepared.distance = _refine.distance_field(
-                _refine.edges(_window(cells, dr0, dr1, dc0, dc1))
+            prepared.distance = _refine.edge_distance_field(
+                _window(cells, dr0, dr1, dc0, dc1, copy=False)
             )
             prepared.distance_offset = (dc0, dr0)
-        self._reference_signature(prepared, rot_factor)  # the usual work, done up front
-        self._level(prepared, factor)
+        # the usual work, done up front (the pooled images from the cells at hand)
+        for f in (factor, rot_factor):
+            prepared.levels[f] = _spectral.coarse_indicator(walls, f)
+        self._reference_signature(prepared, rot_factor)
         return prepared
 
     @staticmethod
@@ -448,7 +457,8 @@ class IFMIRegistrar:
         """The reference's occupied indicator pooled by ``factor`` (cached)."""
         img = ref.levels.get(factor)
         if img is None:
-            img = ref.levels[factor] = _spectral.coarse_indicator(ref.crop, factor)
+            crop = np.unpackbits(ref.crop, axis=1, count=ref.crop_width).view(np.bool_)
+            img = ref.levels[factor] = _spectral.coarse_indicator(crop, factor)
         return img
 
     def _reference_signature(self, ref: _Prepared, factor: int) -> NDArray[np.complex64]:
