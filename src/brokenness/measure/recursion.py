@@ -219,6 +219,13 @@ def compute_brokenness(
     ParameterError
         For options out of range.
 
+    Notes
+    -----
+    The call runs with numpy's transparent huge-page advice turned off, and restores it on
+    return (:func:`brokenness._memory.small_pages`): on kernels that compact memory to find
+    huge pages, fresh grids of large maps cost seconds of system time otherwise. Results do
+    not depend on it. No thread count is set (see the README, "Scaling").
+
     References
     ----------
     .. [1] A. Birk, "Using Recursive Spectral Registrations to Determine Brokenness as
