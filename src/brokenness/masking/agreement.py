@@ -81,9 +81,11 @@ class ReferenceIndex:
         """The reference's occupied cells (computed once; do not modify)."""
         return self.reference.occupied
 
-    @cached_property
+    @property
     def known(self) -> NDArray[np.bool_]:
-        """The reference's known (occupied or free) cells (computed once; do not modify)."""
+        """The reference's known (occupied or free) cells (computed on each use: it is needed
+        by the chance agreement, once per threshold, and the contradiction test only, and
+        holding it would add a byte a cell to the peak of the call)."""
         return self.reference.known
 
     @cached_property
