@@ -34,8 +34,15 @@ _LOOKUP_TABLE_CELLS = 4_000_000
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
     """``(x, y) = (column, row)`` coordinates of the ``True`` cells, shape (N, 2), row-major."""
-    rows, cols = np.nonzero(np.asarray(mask, dtype=bool))
-    return np.column_stack([cols, rows]).astype(np.float64)
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim != 2 or m.size == 0:
+        rows, cols = np.nonzero(m)
+        return np.column_stack([cols, rows]).astype(np.float64)
+    # OpenCV's scan lists the cells row by row, as numpy's nonzero does, in one fast pass
+    found = cv2.findNonZero(np.ascontiguousarray(m).view(np.uint8))
+    if found is None:
+        return np.zeros((0, 2), dtype=np.float64)
+    return found.reshape(-1, 2).astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
