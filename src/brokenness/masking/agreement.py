@@ -34,8 +34,15 @@ _LOOKUP_TABLE_CELLS = 4_000_000
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
     """``(x, y) = (column, row)`` coordinates of the ``True`` cells, shape (N, 2), row-major."""
-    rows, cols = np.nonzero(np.asarray(mask, dtype=bool))
-    return np.column_stack([cols, rows]).astype(np.float64)
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim != 2 or m.size == 0:
+        rows, cols = np.nonzero(m)
+        return np.column_stack([cols, rows]).astype(np.float64)
+    # OpenCV's scan lists the cells row by row, as numpy's nonzero does, in one fast pass
+    found = cv2.findNonZero(np.ascontiguousarray(m).view(np.uint8))
+    if found is None:
+        return np.zeros((0, 2), dtype=np.float64)
+    return found.reshape(-1, 2).astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,11 +75,29 @@ class ReferenceIndex:
         if not occupied.any():
             raise MapError("the reference map has no occupied cell")
         points = cell_points(occupied)
-        return cls(
+        index = cls(
             reference=reference,
             occupied_distance=manhattan_distance_map(occupied),
             occupied_points=points,
         )
+        index.__dict__["occupied"] = occupied  # the cached property, already at hand
+        return index
+
+    @cached_property
+    def occupied(self) -> NDArray[np.bool_]:
+        """The reference's occupied cells (computed once; do not modify)."""
+        return self.reference.occupied
+
+    @property
+    def known(self) -> NDArray[np.bool_]:
+        """The reference's known (occupied or free) cells (computed on each use: it is needed
+        by the chance agreement, once per threshold, and the contradiction test only, and
+        holding it would add a byte a cell to the peak of the call)."""
+        return self.reference.known
+
+    @cached_property
+    def _chance(self) -> dict[float, float]:
+        return {}
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -88,7 +113,7 @@ class ReferenceIndex:
         up to 4 million cells it is built for) so that ``cv2.remap`` can look it up.
         """
         _, labels = cv2.distanceTransformWithLabels(
-            np.where(self.reference.occupied, 0, 1).astype(np.uint8),
+            np.logical_not(self.occupied).view(np.uint8),
             cv2.DIST_L2,
             cv2.DIST_MASK_PRECISE,
             labelType=cv2.DIST_LABEL_PIXEL,
@@ -135,13 +160,20 @@ class ReferenceIndex:
 
         The fraction of known reference cells within ``threshold`` (Manhattan) of an occupied
         reference cell: the agreement that noise gets by luck. Used by the stopping rule.
+        Computed once per threshold.
         """
-        known = self.reference.known
+        cached = self._chance.get(threshold)
+        if cached is not None:
+            return cached
+        known = self.known
         n_known = int(np.count_nonzero(known))
         if n_known == 0:
-            return 1.0
-        near = (self.occupied_distance <= threshold) & known
-        return float(np.count_nonzero(near)) / n_known
+            value = 1.0
+        else:
+            near = (self.occupied_distance <= threshold) & known
+            value = float(np.count_nonzero(near)) / n_known
+        self._chance[threshold] = value
+        return value
 
 
 def unmatched_reference(
@@ -170,9 +202,18 @@ def unmatched_reference(
     cols = np.rint(p[:, 0]).astype(np.intp)
     rows = np.rint(p[:, 1]).astype(np.intp)
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    hit = np.zeros((h, w), dtype=bool)
-    hit[rows[inside], cols[inside]] = True
-    return reference_occupied & ~within_manhattan(hit, threshold)
+    out = reference_occupied.copy()
+    if not inside.any():
+        return out
+    rows, cols = rows[inside], cols[inside]
+    # only the box of the hits, widened by the radius, can change
+    radius = max(int(np.floor(threshold)), 0)
+    r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, h)
+    c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, w)
+    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    hit[rows - r0, cols - c0] = True
+    out[r0:r1, c0:c1] &= ~within_manhattan(hit, threshold)
+    return out
 
 
 def within_manhattan(mask: NDArray[np.bool_], threshold: float) -> NDArray[np.bool_]:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..masking import sample_at
 from ..transform import RigidTransform
 
 __all__ = ["mostly_claimed", "prefer_unexplained"]
@@ -56,16 +55,23 @@ def mostly_claimed(
     points: NDArray[np.float64],
     near_claimed: NDArray[np.bool_],
     threshold: float,
+    offset: tuple[int, int] = (0, 0),
 ) -> bool:
     """Whether most agreeing cells of ``best`` land on walls earlier partitions matched.
 
     ``near_claimed`` marks the reference cells within ``threshold`` of such walls
-    (:func:`~brokenness.masking.within_manhattan`); the moved cells are rounded to the
-    nearest cell, cells off the grid are not on them.
+    (:func:`~brokenness.masking.within_manhattan`), or those of a box of the reference
+    whose first cell is ``offset`` ``(col0, row0)`` (no such cell lies outside it); the
+    moved cells are rounded to the nearest cell (in single precision, half to even, as
+    :func:`~brokenness.masking.sample_at` rounds), cells off it are not on them.
     """
     transform, agree = best
     if not agree.any():
         return False
-    flags = near_claimed.view(np.uint8).astype(np.float32)
-    on_claimed = sample_at(flags, transform.apply(points[agree]), 0.0, nearest=True) > 0.5
+    moved = transform.apply(points[agree]).astype(np.float32)
+    cols = np.rint(moved[:, 0]).astype(np.intp) - offset[0]
+    rows = np.rint(moved[:, 1]).astype(np.intp) - offset[1]
+    h, w = near_claimed.shape
+    inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    on_claimed = near_claimed[rows[inside], cols[inside]]
     return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from ..grid import FREE, OCCUPIED, OccupancyMap
 from ..masking import ReferenceIndex
 from .partitions import Found
-from .views import isolated_cells
+from .views import isolated_points
 
 __all__ = ["MAP_RATIO", "Contradiction", "contradiction"]
 
@@ -56,6 +56,25 @@ MIN_EXPECTED = 10.0
 _MAX_FREE = 400_000
 #: ... in chunks of this many, so that the temporaries do not grow with the map.
 _CHUNK = 16_384
+
+
+#: Rows of the bands in which whole-grid masks are built (bounded temporaries).
+_BAND_ROWS = 512
+
+
+def _free_box(states: NDArray[np.int8]) -> tuple[int, int, int, int] | None:
+    """``(row0, row1, col0, col1)`` (half-open) of the free cells, or None if there are none;
+    found in bands of rows (no mask of the whole grid)."""
+    rows = np.zeros(states.shape[0], dtype=bool)
+    cols = np.zeros(states.shape[1], dtype=bool)
+    for a in range(0, states.shape[0], _BAND_ROWS):
+        free = states[a : a + _BAND_ROWS] == FREE
+        rows[a : a + _BAND_ROWS] = free.any(axis=1)
+        cols |= free.any(axis=0)
+    if not rows.any():
+        return None
+    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
+    return int(r[0]), int(r[-1]) + 1, int(c[0]), int(c[-1]) + 1
 
 
 @dataclass(frozen=True)
@@ -133,29 +152,28 @@ def contradiction(
     -------
     Contradiction
     """
-    reference = index.reference
-    known = reference.known
-    occupied_ref = reference.occupied
+    known = index.known
+    occupied_ref = index.occupied
     n_known = int(np.count_nonzero(known))
-    chance = float(np.count_nonzero(occupied_ref & known)) / n_known if n_known else 0.0
+    chance = float(np.count_nonzero(occupied_ref)) / n_known if n_known else 0.0
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
     states = working.states
-    free_rows = np.flatnonzero((states == FREE).any(axis=1))
-    if k == 0 or free_rows.size == 0:
-        return empty
     # the box of the map's free cells: free space outside it does not exist
-    free_cols = np.flatnonzero((states[free_rows[0] : free_rows[-1] + 1] == FREE).any(axis=0))
-    r0, r1 = int(free_rows[0]), int(free_rows[-1]) + 1
-    c0, c1 = int(free_cols[0]), int(free_cols[-1]) + 1
+    free_box = _free_box(states)
+    if k == 0 or free_box is None:
+        return empty
+    r0, r1, c0, c1 = free_box
     box = states[r0:r1, c0:c1]
     occupied = box == OCCUPIED
     # clear free cells: farther than 2c from every map wall (a disc of radius 2c around walls)
     radius = max(int(math.ceil(2.0 * threshold)), 1)
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     near_wall = cv2.dilate(occupied.view(np.uint8), disc).view(bool)
-    clear_mask = (box == FREE) & ~near_wall
-    del near_wall
+    del occupied
+    clear_mask = np.logical_not(near_wall, out=near_wall)  # in place: no fresh grids
+    for a in range(0, clear_mask.shape[0], _BAND_ROWS):  # ... nor a temporary of the box
+        clear_mask[a : a + _BAND_ROWS] &= box[a : a + _BAND_ROWS] == FREE
     n_clear = int(np.count_nonzero(clear_mask))
     if n_clear == 0:
         return empty
@@ -173,10 +191,9 @@ def contradiction(
     px, py = points[:, 0].astype(np.intp) - c0, points[:, 1].astype(np.intp) - r0
     in_box = (py >= 0) & (py < r1 - r0) & (px >= 0) & (px < c1 - c0)
     px, py, owner = px[in_box], py[in_box], owner[in_box]  # row-major, as the box's labels
-    is_source = (owner >= 0) & ~isolated_cells(occupied)[py, px]
+    is_source = (owner >= 0) & ~isolated_points(py, px)  # the box's walls are these points
     if not is_source.any():
         return empty
-    del occupied
     # the nearest source wall of every cell, on a grid of 2 x 2 blocks (a quarter of the
     # memory and time; a block belongs to the partition of a source wall in it)
     coarse_shape = (-(-(r1 - r0) // 2), -(-(c1 - c0) // 2))
@@ -184,7 +201,7 @@ def contradiction(
     block_owner[py[is_source] // 2, px[is_source] // 2] = owner[is_source]
     is_block = block_owner >= 0
     _, nearest = cv2.distanceTransformWithLabels(
-        np.where(is_block, 0, 1).astype(np.uint8),
+        np.logical_not(is_block).view(np.uint8),
         cv2.DIST_L2,
         cv2.DIST_MASK_5,
         labelType=cv2.DIST_LABEL_PIXEL,

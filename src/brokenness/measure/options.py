@@ -152,6 +152,10 @@ class Settings:
     drop_isolated : bool
         Isolated occupied cells are hidden from the registration (the reference's walls are
         connected lines).
+    as_cells : bool
+        The registration takes the cells left as
+        :class:`~brokenness.registration.base.OccupiedCells` (built from those cells alone)
+        instead of a grid of the map's size.
     """
 
     threshold: float
@@ -162,10 +166,16 @@ class Settings:
     max_candidates: int
     uses_free: bool
     drop_isolated: bool
+    as_cells: bool = False
 
     @classmethod
     def of(
-        cls, options: BrokennessOptions, n_occupied: int, uses_free: bool, drop_isolated: bool
+        cls,
+        options: BrokennessOptions,
+        n_occupied: int,
+        uses_free: bool,
+        drop_isolated: bool,
+        as_cells: bool = False,
     ) -> Settings:
         """The settings for a map of ``n_occupied`` occupied cells."""
         return cls(
@@ -180,6 +190,7 @@ class Settings:
             max_candidates=options.max_candidates,
             uses_free=uses_free,
             drop_isolated=drop_isolated,
+            as_cells=as_cells,
         )
 
     def needed(self, n: int, p0: float) -> tuple[float, float, float]:

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
@@ -20,6 +22,7 @@ __all__ = [
     "JOIN_SHARE",
     "Found",
     "assemble",
+    "cell_components",
     "consolidate",
     "drop_redundant",
     "labels_in_original_grid",
@@ -54,17 +57,53 @@ def with_fringe(
     pass for a partition of its own; it belongs to the partition it touches.
     """
     near = lookup_distance(index.occupied_distance, transform.apply(pts)) <= loose
-    if np.array_equal(near, agree):
+    if np.array_equal(near, agree) or not near.any():
         return agree
-    cols = pts[:, 0].astype(np.intp)
-    rows = pts[:, 1].astype(np.intp)
-    c0, r0 = cols.min(), rows.min()
-    grid = np.zeros((rows.max() - r0 + 1, cols.max() - c0 + 1), np.uint8)
-    grid[rows[near] - r0, cols[near] - c0] = 1
-    _, comp = cv2.connectedComponents(grid, connectivity=8)
-    seeds = np.unique(comp[rows[agree] - r0, cols[agree] - c0])
-    touched = np.isin(comp[rows - r0, cols - c0], seeds[seeds > 0])
+    comp = cell_components(pts[near, 1].astype(np.intp), pts[near, 0].astype(np.intp))
+    seeds = np.unique(comp[agree[near]])
+    touched = np.zeros(pts.shape[0], dtype=bool)
+    touched[near] = np.isin(comp, seeds)
     return agree | (near & touched)
+
+
+#: Cells of a box per given cell up to which labelling the box costs less than the graph of
+#: the cells (small maps; the components are the same).
+_DENSE_BOX = 64
+
+
+def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.int32]:
+    """The 8-connected component of each of the given distinct cells (numbered from 0).
+
+    The components of the cells alone, as a graph of neighbouring cells (found by sorted
+    lookups of each cell's four forward neighbours): the cost follows the cells, not the
+    grid of their box.
+    """
+    n = rows.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int32)
+    r0, c0 = int(rows.min()), int(cols.min())
+    height = int(rows.max()) - r0 + 1
+    if height * (int(cols.max()) - c0 + 1) <= _DENSE_BOX * n:  # small box: label it directly
+        grid = np.zeros((height, int(cols.max()) - c0 + 1), np.uint8)
+        grid[rows - r0, cols - c0] = 1
+        _, comp = cv2.connectedComponents(grid, connectivity=8)
+        return np.asarray(comp[rows - r0, cols - c0], dtype=np.int32)
+    # a column of margin on each side, so that no neighbour wraps into the next row
+    width = int(cols.max()) - int(cols.min()) + 3
+    keys = (rows - int(rows.min())) * width + (cols - int(cols.min()) + 1)
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    heads, tails = [], []
+    for step in (1, width - 1, width, width + 1):  # right, and the three below
+        at = np.searchsorted(ordered, keys + step)
+        at[at == n] = 0
+        hit = ordered[at] == keys + step
+        heads.append(np.flatnonzero(hit))
+        tails.append(order[at[hit]])
+    head, tail = np.concatenate(heads), np.concatenate(tails)
+    graph = coo_matrix((np.ones(head.size, dtype=np.int8), (head, tail)), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return np.asarray(labels, dtype=np.int32)
 
 
 def merge_target(
@@ -158,7 +197,7 @@ def assemble(
     """Sort partitions by size, relate them to the largest, and draw the label image."""
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     labels = np.full(working.shape, NOT_OCCUPIED, dtype=np.int16)
-    labels[working.occupied] = UNASSIGNED
+    labels[points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)] = UNASSIGNED
     partitions: list[Partition] = []
     if not found:
         return partitions, labels

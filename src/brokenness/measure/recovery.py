@@ -50,14 +50,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..grid import OCCUPIED, OccupancyMap
+from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .hypotheses import best_hypothesis, rival_chance
 from .options import Settings
 from .partitions import Found, merge_target, reassign, with_fringe
-from .views import remainder_states
+from .views import candidates_of, moving_remainder, occupied_count
 
 __all__ = [
     "DENSE_SHARE",
@@ -209,13 +209,30 @@ def _window_counts(
     Only the box around ``at`` is counted (one integer box filter)."""
     r0, r1, c0, c1 = box = _box(rows, cols, at, shape, radius)
     inside = which & _inside(rows, cols, box)
-    grid = np.zeros((r1 - r0, c1 - c0), np.uint8)
-    grid[rows[inside] - r0, cols[inside] - c0] = 1
+    wr, wc = rows[inside], cols[inside]
+    ar, ac = rows[at], cols[at]
+    out = np.zeros(ar.shape[0], dtype=np.float64)
     side = 2 * radius + 1
-    counts = cv2.boxFilter(
-        grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
-    )
-    return counts[rows[at] - r0, cols[at] - c0].astype(np.float64)
+    # in bands of rows (each with the rows its windows reach): bounded temporaries
+    band = max(side, -(-_BAND_CELLS // max(c1 - c0, 1)))
+    for b0 in range(r0, r1, band):
+        b1 = min(b0 + band, r1)
+        here = (ar >= b0) & (ar < b1)
+        if not here.any():
+            continue
+        g0, g1 = max(b0 - radius, r0), min(b1 + radius, r1)
+        near = (wr >= g0) & (wr < g1)
+        grid = np.zeros((g1 - g0, c1 - c0), np.uint8)
+        grid[wr[near] - g0, wc[near] - c0] = 1
+        counts = cv2.boxFilter(
+            grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
+        )
+        out[here] = counts[ar[here] - g0, ac[here] - c0]
+    return out
+
+
+#: Cells of a band of rows of :func:`_window_counts` (about 4 million).
+_BAND_CELLS = 1 << 22
 
 
 def _box(
@@ -360,14 +377,20 @@ class _Search:
             return None
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
-        states = remainder_states(
-            self.working, rows, cols, cells, settings.uses_free, settings.drop_isolated
+        states = moving_remainder(
+            self.working,
+            rows,
+            cols,
+            cells,
+            settings.uses_free,
+            settings.drop_isolated,
+            settings.as_cells,
         )
-        if np.count_nonzero(states == OCCUPIED) < settings.min_cells:
+        if occupied_count(states) < settings.min_cells:
             return None
         left = np.flatnonzero(cells)
         candidates = _new_ones(
-            self.registrar.candidates(self.reference, states, 2 * settings.max_candidates),
+            candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
             found,
             pts[left],
             settings.loose,

@@ -111,10 +111,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._memory import small_pages
 from ..errors import MapError, NothingFoundWarning, ParameterError
-from ..grid import OCCUPIED, OccupancyMap
+from ..grid import OccupancyMap
 from ..limits import check_threshold
 from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
+from ..registration._spectral import bounding_box
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -134,7 +136,13 @@ from .partitions import (
 )
 from .recovery import drop_incoherent, recover
 from .result import BrokennessResult, Partition
-from .views import reference_states, remainder_states, walls_connected
+from .views import (
+    candidates_of,
+    moving_remainder,
+    occupied_count,
+    prepared_reference,
+    walls_connected,
+)
 
 __all__ = ["compute_brokenness"]
 
@@ -211,6 +219,13 @@ def compute_brokenness(
     ParameterError
         For options out of range.
 
+    Notes
+    -----
+    The call runs with numpy's transparent huge-page advice turned off, and restores it on
+    return (:func:`brokenness._memory.small_pages`): on kernels that compact memory to find
+    huge pages, fresh grids of large maps cost seconds of system time otherwise. Results do
+    not depend on it. No thread count is set (see the README, "Scaling").
+
     References
     ----------
     .. [1] A. Birk, "Using Recursive Spectral Registrations to Determine Brokenness as
@@ -226,11 +241,24 @@ def compute_brokenness(
     >>> compute_brokenness(room, room).degree
     0
     """
+    with small_pages():  # fresh grids without huge-page compaction (see brokenness._memory)
+        return _compute(map, reference, options, overrides)
+
+
+def _compute(
+    map: MapLike,  # noqa: A002 - the paper's name
+    reference: MapLike,
+    options: BrokennessOptions | None,
+    overrides: dict[str, Any],
+) -> BrokennessResult:
+    """:func:`compute_brokenness`."""
     started = time.perf_counter()
     opts = _options(options, overrides)
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
-    if original.n_occupied == 0:
+    original_points = cell_points(original.occupied)  # (N, 2), row-major order
+    n_occupied = original_points.shape[0]
+    if n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
     check_threshold(opts.loose, ref.shape)  # the neighbourhood it implies fits the limits
     index = ReferenceIndex.build(ref)  # raises for an empty reference
@@ -244,18 +272,26 @@ def compute_brokenness(
     if method == "ifmi":
         thorough = make_registrar(method, **{**kwargs, **_IFMI_THOROUGH_OPTIONS})
 
-    points = cell_points(working.occupied)  # (N, 2), row-major order
+    points = original_points if working is original else cell_points(working.occupied)
     uses_free = bool(getattr(registrar, "uses_free_space", True))
-    settings = Settings.of(opts, points.shape[0], uses_free, walls_connected(index.reference))
-    whole = registrar.prepare_reference(
-        reference_states(index.reference, index.reference.occupied, uses_free)
+    as_cells = bool(getattr(registrar, "accepts_cells", False))
+    if thorough is not None:
+        as_cells = as_cells and bool(getattr(thorough, "accepts_cells", False))
+    settings = Settings.of(
+        opts,
+        points.shape[0],
+        uses_free,
+        walls_connected(index.reference, index.occupied_points),
+        as_cells,
     )
+    whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
     if thorough is not None:  # every cell given to its best partition, as reassign does
         found = recover(found, points, working, index, thorough, whole, settings)
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    del whole  # the prepared reference (its distance map): no registration from here on
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
@@ -264,8 +300,11 @@ def compute_brokenness(
         found, points, working, to_working, original, ref, index
     )
     labels = labels_in_original_grid(labels_working, working, to_working, original)
-    n_occupied = original.n_occupied
-    assigned = int(np.count_nonzero(labels >= 0))
+    # the cells of each partition, counted at the original map's occupied cells
+    at = original_points
+    lab = labels[at[:, 1].astype(np.intp), at[:, 0].astype(np.intp)]
+    sizes = np.bincount(lab[lab >= 0], minlength=len(found_partitions))
+    assigned = int(sizes.sum())
     acceptance: list[float | None] = [None] * len(found_partitions)
     if method == "random-walk":  # the random walk's own quality measure, per partition
         from ..registration.random_walk import partition_acceptance
@@ -276,8 +315,8 @@ def compute_brokenness(
     partitions = tuple(
         Partition(
             index=p.index,
-            cells=int(np.count_nonzero(labels == p.index)),
-            fraction=float(np.count_nonzero(labels == p.index)) / n_occupied,
+            cells=int(sizes[p.index]),
+            fraction=float(sizes[p.index]) / n_occupied,
             transform=p.transform,
             confidence=p.confidence,
             rotation_offset_deg=p.rotation_offset_deg,
@@ -291,7 +330,7 @@ def compute_brokenness(
     )
     parameters = opts.to_dict() | {"working_resolution": working.resolution}
     if reason is not None:
-        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=2)
+        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=3)
     return BrokennessResult(
         degree=len(partitions) - 1 if reason is None else None,
         partitions=partitions,
@@ -305,6 +344,23 @@ def compute_brokenness(
         reason=reason,
         contradiction=map_ratio,
     )
+
+
+def _near_claimed(
+    occupied: NDArray[np.bool_], available: NDArray[np.bool_], threshold: float
+) -> tuple[NDArray[np.bool_], tuple[int, int]]:
+    """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
+    and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
+    (no such cell lies outside it)."""
+    claimed = occupied & ~available
+    box = bounding_box(claimed)
+    if box is None:
+        return np.zeros((0, 0), dtype=bool), (0, 0)
+    radius = max(int(math.floor(threshold)), 0)
+    h, w = claimed.shape
+    r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
+    c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
+    return within_manhattan(claimed[r0:r1, c0:c1], threshold), (c0, r0)
 
 
 def _region_candidates(
@@ -331,10 +387,16 @@ def _region_candidates(
                 cells = remaining & (tile_row == i) & (tile_col == j)
                 if np.count_nonzero(cells) < settings.min_cells:
                     continue
-                states = remainder_states(
-                    working, rows, cols, cells, settings.uses_free, settings.drop_isolated
+                states = moving_remainder(
+                    working,
+                    rows,
+                    cols,
+                    cells,
+                    settings.uses_free,
+                    settings.drop_isolated,
+                    settings.as_cells,
                 )
-                out += registrar.candidates(whole, states, settings.max_candidates)
+                out += candidates_of(registrar, whole, states, settings.max_candidates)
     return out
 
 
@@ -426,7 +488,7 @@ def _recurse(
     uses_free, drop_isolated = settings.uses_free, settings.drop_isolated
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
-    reference_occupied = index.reference.occupied
+    reference_occupied = index.occupied  # never modified: each step makes a new mask
     p0 = index.chance_agreement(threshold)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[Found] = []
@@ -438,8 +500,10 @@ def _recurse(
         if steps > 2 * max_partitions:  # merges do not count; bound them too
             break
         t0 = time.perf_counter()
-        moving_states = remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
-        if np.count_nonzero(moving_states == OCCUPIED) < min_cells:
+        moving_states = moving_remainder(
+            working, rows, cols, remaining, uses_free, drop_isolated, settings.as_cells
+        )
+        if occupied_count(moving_states) < min_cells:
             break  # what is left is scattered noise: nothing to register
         left = np.flatnonzero(remaining)
         left_points = points[left]
@@ -471,7 +535,7 @@ def _recurse(
                 continue
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             if widen_whole:
-                fresh = attempt.candidates(whole, moving_states, limit)
+                fresh = candidates_of(attempt, whole, moving_states, limit)
                 pool += fresh
                 best_whole = best_hypothesis(pool, left_points, index, threshold, refined)
                 widen_whole = best_whole is None or bool(np.count_nonzero(best_whole[1]) < enough)
@@ -480,17 +544,20 @@ def _recurse(
             use_rest = rest is not None
             if not use_rest and best_whole is not None and found:
                 if near_claimed is None:
-                    near_claimed = within_manhattan(
-                        index.reference.occupied & ~reference_occupied, threshold
-                    )
-                use_rest = mostly_claimed(best_whole, left_points, near_claimed, threshold)
+                    near_claimed = _near_claimed(index.occupied, reference_occupied, threshold)
+                claimed, offset = near_claimed
+                use_rest = mostly_claimed(best_whole, left_points, claimed, threshold, offset)
             if best_whole is not None and use_rest:
                 if rest is None:
-                    rest = registrar.prepare_reference(
-                        reference_states(index.reference, reference_occupied, uses_free)
+                    rest = prepared_reference(
+                        registrar,
+                        index.reference,
+                        reference_occupied,
+                        uses_free,
+                        settings.as_cells,
                     )
                 if widen_rest:
-                    fresh_rest = attempt.candidates(rest, moving_states, limit)
+                    fresh_rest = candidates_of(attempt, rest, moving_states, limit)
                     pool_rest += fresh_rest
                     best_rest = best_hypothesis(pool_rest, left_points, index, threshold, refined)
                     widen_rest = best_rest is None or bool(np.count_nonzero(best_rest[1]) < enough)

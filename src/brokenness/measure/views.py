@@ -8,16 +8,25 @@ walls are connected lines.
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ..grid import FREE, UNKNOWN, OccupancyMap
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import manhattan_distance_map
+from ..registration.base import Candidate, CellsRegistrar, OccupiedCells, Registrar
 
 __all__ = [
+    "candidates_of",
+    "prepared_reference",
     "isolated_cells",
+    "isolated_points",
+    "moving_remainder",
+    "occupied_count",
     "reference_states",
+    "remainder_cells",
     "remainder_states",
     "walls_connected",
     "withdraw",
@@ -25,6 +34,9 @@ __all__ = [
 
 #: A reference with at most this share of isolated occupied cells has connected walls.
 ISOLATED_SHARE = 0.05
+#: Cells of a box per given cell up to which a grid-wide filter on the box costs less than
+#: lookups at the cells (small maps; the answers are the same).
+_DENSE_BOX = 64
 
 
 def withdraw(
@@ -65,6 +77,84 @@ def remainder_states(
     return out
 
 
+def remainder_cells(
+    shape: tuple[int, int],
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    drop_isolated: bool,
+) -> OccupiedCells:
+    """The occupied cells of :func:`remainder_states`, built from the cells left alone.
+
+    The same cells as ``remainder_states(...) == OCCUPIED`` (for a method that does not use
+    free space), as a crop of the box of the cells left: the cost follows those cells, not
+    the grid. Isolated cells are found on that box (a cell outside it is never occupied).
+    """
+    r, c = rows[remaining], cols[remaining]
+    if r.size == 0:
+        return OccupiedCells(np.zeros((0, 0), dtype=bool), (0, 0), shape)
+    r0, c0 = int(r.min()), int(c.min())
+    grid = np.zeros((int(r.max()) - r0 + 1, int(c.max()) - c0 + 1), dtype=bool)
+    if drop_isolated:
+        keep = ~isolated_points(r, c)
+        r, c = r[keep], c[keep]
+    grid[r - r0, c - c0] = True
+    return OccupiedCells(grid, (c0, r0), shape)
+
+
+def moving_remainder(
+    working: OccupancyMap,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    remaining: NDArray[np.bool_],
+    uses_free: bool,
+    drop_isolated: bool,
+    as_cells: bool,
+) -> NDArray[np.int8] | OccupiedCells:
+    """What the registration is given of the cells left: their occupied cells
+    (:func:`remainder_cells`) when it takes them (``as_cells``) and does not use free space,
+    else the grid of :func:`remainder_states`."""
+    if as_cells and not uses_free:
+        return remainder_cells(working.shape, rows, cols, remaining, drop_isolated)
+    return remainder_states(working, rows, cols, remaining, uses_free, drop_isolated)
+
+
+def candidates_of(
+    registrar: Registrar,
+    prepared: Any,
+    moving: NDArray[np.int8] | OccupiedCells,
+    max_candidates: int,
+) -> list[Candidate]:
+    """``registrar.candidates`` of what :func:`moving_remainder` returns."""
+    if isinstance(moving, OccupiedCells):
+        return cast(CellsRegistrar, registrar).candidates(prepared, moving, max_candidates)
+    return registrar.candidates(prepared, moving, max_candidates)
+
+
+def prepared_reference(
+    registrar: Registrar,
+    reference: OccupancyMap,
+    available: NDArray[np.bool_],
+    uses_free: bool,
+    as_cells: bool,
+) -> Any:
+    """``registrar.prepare_reference`` of the reference less the walls no longer
+    ``available`` (:func:`reference_states`): given as its occupied cells (``available``
+    itself, no copy) when the registration takes them (``as_cells``) and does not use free
+    space."""
+    if as_cells and not uses_free:
+        cells = OccupiedCells(available, (0, 0), reference.shape)
+        return cast(CellsRegistrar, registrar).prepare_reference(cells)
+    return registrar.prepare_reference(reference_states(reference, available, uses_free))
+
+
+def occupied_count(moving: NDArray[np.int8] | OccupiedCells) -> int:
+    """Occupied cells of what :func:`moving_remainder` returns."""
+    if isinstance(moving, OccupiedCells):
+        return moving.count
+    return int(np.count_nonzero(moving == OCCUPIED))
+
+
 def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """Occupied cells with no other occupied cell in their 5x5 neighbourhood."""
     count = cv2.boxFilter(
@@ -75,6 +165,32 @@ def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
         borderType=cv2.BORDER_CONSTANT,
     )
     return occupied & (count == 1)
+
+
+def isolated_points(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.bool_]:
+    """:func:`isolated_cells` at the given (distinct) occupied cells, counting only those.
+
+    The cells of the 5x5 neighbourhood of each are looked up in a grid of their box (the
+    cost follows the cells, not the grid): 25 lookups per cell.
+    """
+    isolated = np.zeros(rows.shape[0], dtype=bool)
+    if rows.size == 0:
+        return isolated
+    r0, c0 = int(rows.min()) - 2, int(cols.min()) - 2
+    width = int(cols.max()) - c0 + 3
+    height = int(rows.max()) - r0 + 3
+    if height * width <= _DENSE_BOX * rows.size:  # a small box: one box filter is cheaper
+        box = np.zeros((height, width), dtype=bool)
+        box[rows - r0, cols - c0] = True
+        return isolated_cells(box)[rows - r0, cols - c0]
+    grid = np.zeros(height * width, dtype=np.uint8)
+    flat = (rows - r0) * width + (cols - c0)
+    grid[flat] = 1
+    count = np.zeros(rows.shape[0], dtype=np.uint8)
+    for dy in range(-2, 3):
+        for dx in range(-2, 3):
+            count += grid[flat + (dy * width + dx)]
+    return count == 1
 
 
 def reference_states(
@@ -89,13 +205,15 @@ def reference_states(
     return withdraw(reference.states, withdrawn, available)
 
 
-def walls_connected(reference: OccupancyMap) -> bool:
+def walls_connected(reference: OccupancyMap, points: NDArray[np.float64] | None = None) -> bool:
     """True when at most :data:`ISOLATED_SHARE` of the reference's occupied cells are isolated.
 
     Then isolated cells of the map are noise and are hidden from the registration; if the
     reference itself is dotted (a sparse probabilistic map), they are structure and stay.
+    ``points``: the reference's occupied cells ``(x, y)``, if already at hand.
     """
-    occupied = reference.occupied
-    return bool(
-        np.count_nonzero(isolated_cells(occupied)) <= ISOLATED_SHARE * np.count_nonzero(occupied)
-    )
+    if points is None:
+        rows, cols = np.nonzero(reference.occupied)
+    else:
+        rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    return bool(np.count_nonzero(isolated_points(rows, cols)) <= ISOLATED_SHARE * rows.size)

@@ -22,6 +22,7 @@ from ..masking.distance import sample_at
 
 __all__ = [
     "distance_field",
+    "edge_distance_field",
     "edges",
     "inlier_count",
     "inlier_counts",
@@ -37,10 +38,24 @@ def edges(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
     refinement fits outlines because the inside of a blob is at distance 0 from the blob at
     many poses and would make the fit indifferent to small turns and shifts.
     """
-    occ = occupied.view(np.uint8) if occupied.dtype == np.bool_ else occupied.astype(np.uint8)
+    return _edges_u8(occupied).view(np.bool_)
+
+
+def _edges_u8(occupied: NDArray[np.bool_]) -> NDArray[np.uint8]:
+    """:func:`edges` as 0/1 bytes (a fresh array; the input may be a view of a larger grid)."""
+    occ = occupied.view(np.uint8) if occupied.dtype == np.bool_ else (occupied != 0).view(np.uint8)
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     inner = cv2.erode(occ, cross, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    return occupied & (inner == 0)
+    # the erosion lies inside the cells (the cross holds its centre): cells less it, in place
+    return np.asarray(cv2.subtract(occ, inner, dst=inner), dtype=np.uint8)
+
+
+def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:
+    """``distance_field(edges(occupied))``, with one temporary grid of bytes, not three."""
+    outline = _edges_u8(occupied)
+    np.bitwise_xor(outline, 1, out=outline)  # non-zero: not an outline cell
+    out = cv2.distanceTransform(outline, cv2.DIST_L2, cv2.DIST_MASK_5)
+    return np.asarray(out, dtype=np.float32)
 
 
 def distance_field(cells: NDArray[np.bool_]) -> NDArray[np.float32]:

@@ -62,18 +62,22 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     )
     if factor <= 1:
         return img.astype(np.float32)
-    rows, cols = img.shape
-    pr, pc = -rows % factor, -cols % factor
-    if pr or pc:
-        img = np.asarray(
-            cv2.copyMakeBorder(img, 0, pr, 0, pc, cv2.BORDER_CONSTANT, value=0), dtype=np.uint8
-        )
-    r, c = img.shape
     # max over row blocks, then (transposed, so the reduction is again over whole rows)
     # over column blocks: numpy reduces contiguous rows fast, short inner axes slowly
-    img = img.reshape(r // factor, factor, c).max(axis=1)
-    img = np.ascontiguousarray(img.T).reshape(c // factor, factor, r // factor).max(axis=1)
+    img = _pool_rows(img, factor)
+    img = _pool_rows(np.ascontiguousarray(img.T), factor)
     return np.ascontiguousarray(img.T, dtype=np.float32)
+
+
+def _pool_rows(img: NDArray[np.uint8], factor: int) -> NDArray[np.uint8]:
+    """Max over blocks of ``factor`` rows (a last, shorter block as it is: the zero rows that
+    would pad it change no maximum of non-negative values)."""
+    rows, cols = img.shape
+    whole = rows // factor * factor
+    out = img[:whole].reshape(rows // factor, factor, cols).max(axis=1)
+    if whole < rows:
+        out = np.concatenate([out, img[whole:].max(axis=0, keepdims=True)])
+    return out
 
 
 @lru_cache(maxsize=16)

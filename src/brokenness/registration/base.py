@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ..transform import RigidTransform
 
-__all__ = ["Candidate", "Registrar", "Registration"]
+__all__ = ["Candidate", "CellsRegistrar", "OccupiedCells", "Registrar", "Registration"]
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,53 @@ class Candidate:
     transform: RigidTransform
     confidence: float
     acceptance: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class OccupiedCells:
+    """The occupied cells of a moving map, as a crop of its grid (the rest is unknown).
+
+    What a registration that looks at occupied cells only needs of a moving map, without a
+    grid of the map's size: the recursion builds it from the cells left in each step, at a
+    cost that follows those cells, not the canvas.
+
+    Attributes
+    ----------
+    crop : ndarray of bool, 2D
+        The occupied cells inside the box ``rows row0 .. row0 + crop.shape[0] - 1``,
+        ``columns col0 .. col0 + crop.shape[1] - 1`` of the grid; no cell outside the box is
+        occupied.
+    offset : (int, int)
+        ``(col0, row0)``.
+    shape : (int, int)
+        ``(rows, cols)`` of the whole grid.
+    """
+
+    crop: NDArray[np.bool_]
+    offset: tuple[int, int]
+    shape: tuple[int, int]
+
+    @property
+    def count(self) -> int:
+        """Number of occupied cells."""
+        return int(np.count_nonzero(self.crop))
+
+    def states(self) -> NDArray[np.int8]:
+        """The whole grid as cell states: occupied (1) on the cells, unknown (-1) elsewhere."""
+        out = np.full(self.shape, -1, dtype=np.int8)
+        c0, r0 = self.offset
+        h, w = self.crop.shape
+        out[r0 : r0 + h, c0 : c0 + w][self.crop] = 1
+        return out
+
+    def same(self, other: OccupiedCells) -> bool:
+        """Whether ``other`` holds the same cells of a grid of the same shape."""
+        return (
+            self.shape == other.shape
+            and self.offset == other.offset
+            and self.crop.shape == other.crop.shape
+            and bool(np.array_equal(self.crop, other.crop))
+        )
 
 
 @dataclass(frozen=True)
@@ -106,6 +153,8 @@ class Registrar(Protocol):
     #: Whether the method looks at free cells. If not, the recursion skips withdrawing the
     #: free space around masked cells (a distance transform per step).
     uses_free_space: bool
+    # Optional attribute ``accepts_cells`` (absent: False): the method is also a
+    # :class:`CellsRegistrar`.
 
     def prepare_reference(self, reference_states: NDArray[np.int8]) -> Any:
         """Precompute what depends on the reference only."""
@@ -113,6 +162,28 @@ class Registrar(Protocol):
 
     def candidates(
         self, prepared_reference: Any, moving_states: NDArray[np.int8], max_candidates: int
+    ) -> list[Candidate]:
+        """Ranked hypotheses (best first, at least one) for moving -> reference."""
+        ...
+
+
+class CellsRegistrar(Registrar, Protocol):
+    """A registration whose ``prepare_reference`` and ``candidates`` also take the maps as
+    :class:`OccupiedCells` (a method that looks at occupied cells only; its
+    ``accepts_cells`` is True): the recursion then builds no grid of the map's size per
+    step."""
+
+    accepts_cells: bool
+
+    def prepare_reference(self, reference_states: NDArray[np.int8] | OccupiedCells) -> Any:
+        """Precompute what depends on the reference only."""
+        ...
+
+    def candidates(
+        self,
+        prepared_reference: Any,
+        moving_states: NDArray[np.int8] | OccupiedCells,
+        max_candidates: int,
     ) -> list[Candidate]:
         """Ranked hypotheses (best first, at least one) for moving -> reference."""
         ...

@@ -73,7 +73,7 @@ from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
 from . import _refine, _spectral
-from .base import Candidate
+from .base import Candidate, OccupiedCells
 
 __all__ = ["IFMIRegistrar"]
 
@@ -100,7 +100,8 @@ class _Prepared:
     factor: int
     rotation_factor: int
     offset: tuple[int, int]  # (col0, row0) of the cropped reference in full cells
-    crop: NDArray[np.bool_]  # occupied cells inside the bounding box, full resolution
+    crop: NDArray[np.uint8]  # occupied cells inside the bounding box, bits packed by row
+    crop_width: int  # ... of this many columns
     distance: NDArray[np.float32] | None  # full-resolution distance map (refinement) ...
     distance_offset: tuple[int, int]  # ... of the cells from (col0, row0) on
     levels: dict[int, NDArray[np.float32]] = field(default_factory=dict)  # pooled images
@@ -121,7 +122,7 @@ class _Memo:
     """
 
     key: tuple[Any, ...]  # options that shape the hypotheses
-    states: NDArray[np.int8]
+    states: NDArray[np.int8] | _Cells
     moving: _Moving
     angle_correlation: NDArray[np.float64]
     hypotheses: dict[float, list[tuple[NDArray[np.float64], float]]] = field(default_factory=dict)
@@ -179,6 +180,60 @@ def _occupied_box(
     if box is None:
         raise MapError(f"the {role} has no occupied cell, there is nothing {purpose}")
     return occ, box
+
+
+def _window(
+    cells: OccupiedCells, r0: int, r1: int, c0: int, c1: int, copy: bool = True
+) -> NDArray[np.bool_]:
+    """The occupied cells of rows ``r0:r1`` and columns ``c0:c1`` of the grid (contiguous;
+    with ``copy=False`` a view of ``cells.crop`` when the window lies inside it)."""
+    dc, dr = cells.offset
+    h, w = cells.crop.shape
+    if dr <= r0 and r1 <= dr + h and dc <= c0 and c1 <= dc + w:
+        view = cells.crop[r0 - dr : r1 - dr, c0 - dc : c1 - dc]
+        return view if not copy else np.ascontiguousarray(view)
+    out = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    a0, a1, b0, b1 = max(r0, dr), min(r1, dr + h), max(c0, dc), min(c1, dc + w)
+    if a0 < a1 and b0 < b1:
+        out[a0 - r0 : a1 - r0, b0 - c0 : b1 - c0] = cells.crop[a0 - dr : a1 - dr, b0 - dc : b1 - dc]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Cells:
+    """What a memo keeps of :class:`OccupiedCells` to recognise them: the grid's and the
+    crop's shapes, the offset, and the flat indices of the cells in the crop (a few bytes per
+    cell, not a copy of the crop)."""
+
+    shape: tuple[int, int]
+    offset: tuple[int, int]
+    crop_shape: tuple[int, ...]
+    flat: NDArray[np.intp]
+
+    @classmethod
+    def of(cls, cells: OccupiedCells) -> _Cells:
+        return cls(cells.shape, cells.offset, cells.crop.shape, np.flatnonzero(cells.crop))
+
+    def same(self, cells: OccupiedCells) -> bool:
+        if (self.shape, self.offset, self.crop_shape) != (
+            cells.shape,
+            cells.offset,
+            cells.crop.shape,
+        ):
+            return False
+        crop = cells.crop.reshape(-1)
+        # as many cells, and all of them at the remembered places
+        return self.flat.size == int(np.count_nonzero(crop)) and bool(crop[self.flat].all())
+
+
+def _same_moving(a: NDArray[np.int8] | _Cells, b: NDArray[np.int8] | OccupiedCells) -> bool:
+    """Whether a remembered moving map and a new one (grids or occupied cells) are the same,
+    by content."""
+    if isinstance(a, _Cells):
+        return isinstance(b, OccupiedCells) and a.same(b)
+    if isinstance(b, OccupiedCells):
+        return False
+    return bool(np.array_equal(a, b))
 
 
 def _check_int(name: str, value: Any, low: int, high: int) -> None:
@@ -250,6 +305,9 @@ class IFMIRegistrar:
     name = "ifmi"
     #: iFMI registers the occupied cells only (see the module docstring).
     uses_free_space = False
+    #: ``candidates`` takes the moving map as :class:`~brokenness.registration.base.OccupiedCells`
+    #: too (it only looks at the occupied cells).
+    accepts_cells = True
 
     def __init__(
         self,
@@ -337,25 +395,43 @@ class IFMIRegistrar:
         return _spectral.log_polar_signature(image, window, size, grid, self.workers)
 
     # -- protocol -----------------------------------------------------------------------------
-    def prepare_reference(self, reference_states: NDArray[np.int8]) -> _Prepared:
+    def prepare_reference(self, reference_states: NDArray[np.int8] | OccupiedCells) -> _Prepared:
         """Crop, pool and transform the reference once (see :class:`IFMIRegistrar`).
+
+        ``reference_states``: the reference's grid of cell states, or its occupied cells
+        (:class:`~brokenness.registration.base.OccupiedCells`; the same preparation).
 
         Raises
         ------
         MapError
             If the reference is not 2D or has no occupied cell.
         """
-        states = np.asarray(reference_states)
-        occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
+        if isinstance(reference_states, OccupiedCells):
+            cells = reference_states
+            box = _spectral.bounding_box(cells.crop)
+            if box is None:
+                raise MapError(
+                    "the reference has no occupied cell, there is nothing to register to"
+                )
+            dc, dr = cells.offset
+            r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
+            h, w = cells.shape
+        else:
+            states = np.asarray(reference_states)
+            occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
+            cells = OccupiedCells(occ, (0, 0), (int(states.shape[0]), int(states.shape[1])))
+            h, w = cells.shape
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
+        walls = _window(cells, r0, r1, c0, c1, copy=False)
         prepared = _Prepared(
-            shape=(int(states.shape[0]), int(states.shape[1])),
+            shape=(h, w),
             factor=factor,
             rotation_factor=rot_factor,
             offset=(c0, r0),
-            crop=np.ascontiguousarray(occ[r0:r1, c0:c1]),
+            crop=np.packbits(walls, axis=1),
+            crop_width=c1 - c0,
             distance=None,
             distance_offset=(0, 0),
         )
@@ -363,14 +439,17 @@ class IFMIRegistrar:
             # The distance map is only read near the reference's walls (within the inlier
             # radius of the refinement), so it covers their bounding box and a margin: real
             # maps often have wide unknown borders.
-            h, w = occ.shape
             margin = max(_DISTANCE_MARGIN, 2 * factor + 8)
             dr0, dr1 = max(r0 - margin, 0), min(r1 + margin, h)
             dc0, dc1 = max(c0 - margin, 0), min(c1 + margin, w)
-            prepared.distance = _refine.distance_field(_refine.edges(occ[dr0:dr1, dc0:dc1]))
+            prepared.distance = _refine.edge_distance_field(
+                _window(cells, dr0, dr1, dc0, dc1, copy=False)
+            )
             prepared.distance_offset = (dc0, dr0)
-        self._reference_signature(prepared, rot_factor)  # the usual work, done up front
-        self._level(prepared, factor)
+        # the usual work, done up front (the pooled images from the cells at hand)
+        for f in (factor, rot_factor):
+            prepared.levels[f] = _spectral.coarse_indicator(walls, f)
+        self._reference_signature(prepared, rot_factor)
         return prepared
 
     @staticmethod
@@ -378,7 +457,8 @@ class IFMIRegistrar:
         """The reference's occupied indicator pooled by ``factor`` (cached)."""
         img = ref.levels.get(factor)
         if img is None:
-            img = ref.levels[factor] = _spectral.coarse_indicator(ref.crop, factor)
+            crop = np.unpackbits(ref.crop, axis=1, count=ref.crop_width).view(np.bool_)
+            img = ref.levels[factor] = _spectral.coarse_indicator(crop, factor)
         return img
 
     def _reference_signature(self, ref: _Prepared, factor: int) -> NDArray[np.complex64]:
@@ -387,10 +467,17 @@ class IFMIRegistrar:
             sig = ref.signatures[factor] = self._signature(self._level(ref, factor))
         return sig
 
-    def _moving(self, moving_states: NDArray[np.int8], ref: _Prepared) -> _Moving:
-        states = np.asarray(moving_states)
-        occ, (r0, r1, c0, c1) = _occupied_box(states, "moving map", "to register")
-        crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
+    def _moving(self, moving: NDArray[np.int8] | OccupiedCells, ref: _Prepared) -> _Moving:
+        if isinstance(moving, OccupiedCells):
+            box = _spectral.bounding_box(moving.crop)
+            if box is None:
+                raise MapError("the moving map has no occupied cell, there is nothing to register")
+            dc, dr = moving.offset
+            r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
+            crop = np.ascontiguousarray(moving.crop[box[0] : box[1], box[2] : box[3]])
+        else:
+            occ, (r0, r1, c0, c1) = _occupied_box(np.asarray(moving), "moving map", "to register")
+            crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
         # a moving map much larger than the reference is pooled more (bounded FFT sizes)
         extent = max(r1 - r0, c1 - c0)
         factor = max(ref.factor, math.ceil(extent / self.max_size))
@@ -459,28 +546,39 @@ class IFMIRegistrar:
             self.agree_cells,
         )
 
-    def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8]) -> _Memo:
+    def _memo(self, ref: _Prepared, moving_states: NDArray[np.int8] | OccupiedCells) -> _Memo:
         """The analysis of ``moving_states`` against ``ref``, remembered for later calls.
 
         The last :data:`_MEMOS` moving maps are remembered: a step of the recursion asks for
         the hypotheses of what is left of the map with the usual and the wider search, which
         share the analysis, and the recovery registers two sets of suspect cells in turn.
         """
-        states = np.asarray(moving_states)
+        states: NDArray[np.int8] | OccupiedCells
+        if isinstance(moving_states, OccupiedCells):
+            states = moving_states
+        else:
+            states = np.asarray(moving_states)
         key = self._memo_key()
         for memo in ref.memos:
-            if memo.key == key and np.array_equal(memo.states, states):
+            if memo.key == key and _same_moving(memo.states, states):
                 return memo
         mov = self._moving(states, ref)
-        memo = _Memo(key, states.copy(), mov, self._angle_correlation(ref, mov))
+        kept = _Cells.of(states) if isinstance(states, OccupiedCells) else states.copy()
+        memo = _Memo(key, kept, mov, self._angle_correlation(ref, mov))
         ref.memos.append(memo)
         del ref.memos[:-_MEMOS]
         return memo
 
     def candidates(
-        self, prepared_reference: _Prepared, moving_states: NDArray[np.int8], max_candidates: int
+        self,
+        prepared_reference: _Prepared,
+        moving_states: NDArray[np.int8] | OccupiedCells,
+        max_candidates: int,
     ) -> list[Candidate]:
         """Ranked hypotheses moving -> reference (best first, at least one).
+
+        ``moving_states`` is the moving map's grid of cell states, or its occupied cells
+        (:class:`~brokenness.registration.base.OccupiedCells`: the same hypotheses).
 
         Raises
         ------

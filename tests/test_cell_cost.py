@@ -1,0 +1,142 @@
+"""Steps whose cost follows the cells (issue 14) give what the grid-wide versions gave."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from brokenness import OccupancyMap, load_map
+from brokenness.grid import OCCUPIED
+from brokenness.masking import cell_points, unmatched_reference, within_manhattan
+from brokenness.measure.partitions import cell_components
+from brokenness.measure.views import (
+    isolated_cells,
+    isolated_points,
+    remainder_cells,
+    remainder_states,
+)
+from brokenness.registration import IFMIRegistrar
+from brokenness.registration._spectral import coarse_indicator
+from brokenness.registration.base import OccupiedCells
+
+DATA = Path(__file__).parent / "data"
+
+
+def _speckled(seed: int, shape: tuple[int, int] = (70, 90)) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    occ = rng.random(shape) < 0.02  # isolated specks
+    occ[10, 5:80] = occ[10:60, 30] = occ[55, 20:70] = True  # walls
+    return occ
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_isolated_points_match_the_box_filter(seed: int) -> None:
+    occ = _speckled(seed)
+    rows, cols = np.nonzero(occ)
+    expected = isolated_cells(occ)[rows, cols]
+    got = isolated_points(rows, cols)
+    assert got.any() and not got.all()
+    np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("drop_isolated", [False, True])
+def test_remainder_cells_are_the_occupied_cells_of_the_remainder(drop_isolated: bool) -> None:
+    occ = _speckled(7)
+    states = np.where(occ, 1, 0).astype(np.int8)
+    states[:5] = -1
+    working = OccupancyMap(states)
+    points = cell_points(working.occupied)
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    remaining = np.random.default_rng(0).random(points.shape[0]) < 0.6
+    grid = remainder_states(working, rows, cols, remaining, False, drop_isolated)
+    cells = remainder_cells(working.shape, rows, cols, remaining, drop_isolated)
+    np.testing.assert_array_equal(cells.states() == OCCUPIED, grid == OCCUPIED)
+    assert cells.count == np.count_nonzero(grid == OCCUPIED) > 0
+
+
+def test_cell_components_are_the_8_connected_components() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        grid = (rng.random((30, 40)) < 0.3).astype(np.uint8)
+        _, comp = cv2.connectedComponents(grid, connectivity=8)
+        rows, cols = np.nonzero(grid)
+        order = rng.permutation(rows.size)
+        rows, cols = rows[order], cols[order]
+        got = cell_components(rows + 3, cols + 11)
+        expected = comp[rows, cols]
+        # the same partition of the cells, whatever the numbering
+        pairs = set(zip(got.tolist(), expected.tolist(), strict=True))
+        assert len(pairs) == len(set(got.tolist())) == len(set(expected.tolist()))
+
+
+def test_matched_walls_are_withdrawn_on_the_box_of_the_hits() -> None:
+    ref = _speckled(2)
+    hits = np.array([[30.0, 10.0], [31.4, 12.6], [60.0, 55.0]])
+    h, w = ref.shape
+    grid = np.zeros((h, w), bool)
+    c, r = np.rint(hits[:, 0]).astype(int), np.rint(hits[:, 1]).astype(int)
+    grid[r, c] = True
+    expected = ref & ~within_manhattan(grid, 2.0)
+    out = unmatched_reference(ref, hits, 2.0)
+    assert np.count_nonzero(out) < np.count_nonzero(ref)
+    np.testing.assert_array_equal(out, expected)
+
+
+@pytest.mark.parametrize("factor", [1, 2, 3, 5, 8])
+def test_pooling_without_padding(factor: int) -> None:
+    occ = _speckled(4, (67, 83))
+    rows, cols = occ.shape
+    padded = np.zeros((rows + (-rows % factor), cols + (-cols % factor)), np.uint8)
+    padded[:rows, :cols] = occ
+    pr, pc = padded.shape
+    expected = padded.reshape(pr // factor, factor, pc // factor, factor).max(axis=(1, 3))
+    np.testing.assert_array_equal(coarse_indicator(occ, factor), expected.astype(np.float32))
+
+
+def test_ifmi_gives_the_same_hypotheses_from_cells_as_from_the_grid() -> None:
+    m = load_map(DATA / "building_31.yaml")
+    states = m.states.copy()
+    states[:, : states.shape[1] // 2][states[:, : states.shape[1] // 2] == OCCUPIED] = -1
+    reg = IFMIRegistrar(rotation_peaks=3, translation_peaks=3)
+    from_grid = reg.candidates(reg.prepare_reference(m.states), states, 4)
+    occ = states == OCCUPIED
+    rows, cols = np.nonzero(occ)
+    r0, c0 = int(rows.min()) - 3, int(cols.min()) - 2  # a crop with a margin
+    crop = occ[r0:, c0:]
+    cells = OccupiedCells(np.ascontiguousarray(crop), (c0, r0), m.shape)
+    ref_cells = OccupiedCells(m.occupied, (0, 0), m.shape)
+    from_cells = reg.candidates(reg.prepare_reference(ref_cells), cells, 4)
+    assert [c.transform for c in from_cells] == [c.transform for c in from_grid]
+    assert [c.confidence for c in from_cells] == [c.confidence for c in from_grid]
+
+
+def test_sparse_cells_take_the_lookup_paths_with_the_same_answers() -> None:
+    # few cells in a large box: lookups at the cells and the graph of the cells, not the box
+    rng = np.random.default_rng(5)
+    grid = np.zeros((400, 500), np.uint8)
+    grid.flat[rng.choice(grid.size, 800, replace=False)] = 1
+    grid[100, 10:200] = grid[150:300, 250] = 1
+    rows, cols = np.nonzero(grid)
+    assert grid.size > 64 * rows.size  # the sparse case
+    np.testing.assert_array_equal(
+        isolated_points(rows, cols), isolated_cells(grid.astype(bool))[rows, cols]
+    )
+    _, comp = cv2.connectedComponents(grid, connectivity=8)
+    got = cell_components(rows, cols)
+    pairs = set(zip(got.tolist(), comp[rows, cols].tolist(), strict=True))
+    assert len(pairs) == len(set(got.tolist())) == len(set(comp[rows, cols].tolist())) > 100
+
+
+def test_prepared_reference_pools_its_packed_cells_at_any_factor() -> None:
+    m = load_map(DATA / "building_31.yaml")
+    reg = IFMIRegistrar()
+    prepared = reg.prepare_reference(m.states)
+    rows, cols = np.nonzero(m.occupied)
+    crop = m.occupied[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    for factor in (prepared.factor + 1, prepared.factor + 3):
+        np.testing.assert_array_equal(
+            IFMIRegistrar._level(prepared, factor), coarse_indicator(crop, factor)
+        )
