@@ -15,7 +15,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from numpy._core import multiarray
+try:  # numpy >= 2
+    from numpy._core import multiarray
+except ImportError:  # pragma: no cover - numpy 1.26
+    from numpy.core import multiarray  # type: ignore[no-redef]
 
 __all__ = ["small_pages"]
 

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any, NoReturn, TextIO
 
 from .. import __version__
+from .._memory import small_pages
 from ..errors import BrokennessError
 
 __all__ = ["main"]
@@ -88,7 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), small_pages():  # the saving's grids too (brokenness._memory)
         warnings.showwarning = _show_warning
         return _run(args)
 
