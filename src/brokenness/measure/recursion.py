@@ -134,6 +134,7 @@ from .partitions import (
 )
 from .recovery import drop_incoherent, recover
 from .result import BrokennessResult, Partition
+from .settle import settle
 from .views import reference_states, remainder_states, walls_connected
 
 __all__ = ["compute_brokenness"]
@@ -256,6 +257,7 @@ def compute_brokenness(
         found = recover(found, points, working, index, thorough, whole, settings)
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    found = settle(found, points, index, settings)
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
