@@ -36,13 +36,14 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
-from ..grid import FREE, OCCUPIED, OccupancyMap
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
 from .partitions import Found
 from .views import isolated_points
 
-__all__ = ["MAP_RATIO", "Contradiction", "contradiction"]
+__all__ = ["MAP_RATIO", "Contradiction", "WallContradiction", "contradiction", "wall_contradiction"]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
 #: the chance rate, at the significance of the stopping rule (:meth:`Contradiction.upper_ratio`;
@@ -229,3 +230,115 @@ def contradiction(
             counted[j] += int(np.count_nonzero(on_known))
             contradicting[j] += int(np.count_nonzero(on_known & occupied_ref[y, x]))
     return Contradiction(counted, contradicting, chance, stride)
+
+
+@dataclass(frozen=True)
+class WallContradiction:
+    """Wall contradiction of a set of partitions: map walls in the reference's clear free space.
+
+    Attributes
+    ----------
+    counted : int
+        Occupied map cells (isolated ones left out) that land on known reference cells, each
+        under the transform of its partition or, unassigned, of the partition of its nearest
+        assigned cell.
+    contradicting : int
+        Those that land on a *clear* free reference cell: free, farther than ``2 c`` from
+        every reference wall.
+    chance : float
+        The share of known reference cells that are clear free: the rate of walls dropped
+        at random.
+    """
+
+    counted: int
+    contradicting: int
+    chance: float
+
+    def ratio(self) -> float | None:
+        """Observed rate over the chance rate; ``None`` when too few cells are counted."""
+        if self.chance <= 0.0 or self.counted * self.chance < MIN_EXPECTED:
+            return None
+        return (self.contradicting / self.counted) / self.chance
+
+    def upper_ratio(self, z: float) -> float:
+        """Upper bound of the ratio, as :meth:`Contradiction.upper_ratio` bounds its own."""
+        expected = self.counted * self.chance
+        if expected <= 0.0:
+            return math.inf
+        x = self.contradicting
+        return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
+
+
+def wall_contradiction(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> WallContradiction:
+    """How often the map's walls land in the reference's clear free space.
+
+    The converse of :func:`contradiction` (the other half of Birk & Carpin's disagreement:
+    occupied in the map where the reference is free). A partition's own cells agree, so
+    they never land there; what can are the cells no partition explains. Of a map of the
+    reference's place those are few (clutter, moved furniture, a part not found); of a map
+    of another place that one small partition happens to fit, they are most of the map, and
+    they land on the reference's free space about as often as walls dropped at random.
+
+    Parameters
+    ----------
+    found : list of Found
+        The partitions (members index ``points``).
+    points : ndarray, shape (N, 2)
+        The map's occupied cells ``(x, y)`` in the working grid.
+    index : ReferenceIndex
+        The reference.
+    threshold : float
+        Agreement threshold ``c`` (cells); clear free space is farther than ``2 c`` from
+        reference walls.
+
+    Returns
+    -------
+    WallContradiction
+    """
+    states = index.reference.states
+    distance = index.occupied_distance
+    limit = 2.0 * threshold
+    chance = _clear_free_share(states, distance, limit)
+    owner = np.full(points.shape[0], -1, dtype=np.intp)
+    for j, f in enumerate(found):
+        owner[f.members] = j
+    assigned = owner >= 0
+    if not assigned.any():
+        return WallContradiction(0, 0, chance)
+    # specks of noise are not walls (the registration hides them too)
+    neighbours = cKDTree(points).query_ball_point(points, r=2.0, p=np.inf, return_length=True)
+    walls = neighbours > 1
+    lost = walls & ~assigned
+    if lost.any():  # the partition of the nearest assigned cell
+        _, nearest = cKDTree(points[assigned]).query(points[lost])
+        owner[lost] = owner[assigned][nearest]
+    counted = contradicting = 0
+    h, w = states.shape
+    for j, f in enumerate(found):
+        sel = walls & (owner == j)
+        moved = np.rint(f.transform.apply(points[sel])).astype(np.intp)
+        x, y = moved[:, 0], moved[:, 1]
+        inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        x, y = x[inside], y[inside]
+        landed = states[y, x]
+        counted += int(np.count_nonzero(landed != UNKNOWN))
+        contradicting += int(np.count_nonzero((landed == FREE) & (distance[y, x] > limit)))
+    return WallContradiction(counted, contradicting, chance)
+
+
+def _clear_free_share(
+    states: NDArray[np.int8], distance: NDArray[np.float32], limit: float
+) -> float:
+    """The share of the known cells that are free and farther than ``limit`` from walls
+    (counted in bands of rows: no temporary of the grid's size)."""
+    known = clear = 0
+    for r0 in range(0, states.shape[0], _BAND_ROWS):
+        band = states[r0 : r0 + _BAND_ROWS]
+        known += int(np.count_nonzero(band != UNKNOWN))
+        clear += int(np.count_nonzero((band == FREE) & (distance[r0 : r0 + _BAND_ROWS] > limit)))
+    return clear / known if known else 0.0

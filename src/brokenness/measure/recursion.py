@@ -121,7 +121,7 @@ from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
 from .choice import mostly_claimed, prefer_unexplained
-from .evidence import MAP_RATIO, contradiction
+from .evidence import MAP_RATIO, contradiction, wall_contradiction
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -136,6 +136,7 @@ from .partitions import (
 )
 from .recovery import drop_incoherent, recover
 from .result import BrokennessResult, Partition
+from .settle import settle
 from .views import (
     candidates_of,
     moving_remainder,
@@ -292,6 +293,7 @@ def _compute(
     else:  # the random walk costs seconds a registration: no second search
         found = reassign(found, points, index, settings.threshold, settings.min_cells)
     del whole  # the prepared reference (its distance map): no registration from here on
+    found = settle(found, points, index, settings)
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
@@ -412,7 +414,9 @@ def _judge(
     Returns why the map is not measured (``None`` if it is), the whole map's ratio (observed
     free-space contradiction over the chance rate) and each partition's, largest first (as
     :func:`assemble` sorts them). The map is measured when the upper bound of its ratio, at
-    the stopping rule's significance, is at most :data:`MAP_RATIO`.
+    the stopping rule's significance, is at most :data:`MAP_RATIO`, and so is the upper bound
+    of the converse ratio, the map's walls in the reference's clear free space
+    (:func:`~brokenness.measure.evidence.wall_contradiction`).
     """
     if not found:
         return (
@@ -440,6 +444,19 @@ def _judge(
             f"at most {100 * MAP_RATIO:.0f} % for a map of the reference's place): "
             "not the same place?"
         )
+    if reason is None:
+        walls = wall_contradiction(found, points, index, settings.threshold)
+        wall_upper = walls.upper_ratio(settings.significance)
+        if wall_upper > MAP_RATIO:
+            wall_ratio = walls.ratio()
+            seen = "too few cells to tell" if wall_ratio is None else f"{100 * wall_ratio:.0f} %"
+            reason = (
+                f"the map's walls land in the reference's free space at {seen} of the rate of "
+                f"a random placement (up to {100 * wall_upper:.0f} % at "
+                f"{settings.significance:g} sigma; at most {100 * MAP_RATIO:.0f} % for a map "
+                "of the reference's place): most of the map is explained by no partition; "
+                "not the same place?"
+            )
     return reason, ratio, ratios
 
 

@@ -1,0 +1,173 @@
+"""Settle: each partition's transform refitted where its own cells are, kept if the map agrees more.
+
+A partition's transform is registered on a *remainder* of the recursion: the cells left
+when the partitions found before it were masked out. Where two parts are only a little off
+from each other (the bump happened close to where the robot then mapped), the remainder
+holds cells of both, and the refined transform is a compromise between the two: it puts
+most cells of one part and many of the other within a few cells of a wall, but neither
+part where its own transform does. The greedy recursion cannot undo that (the cells it
+masked are gone for the next step), and :func:`~brokenness.measure.partitions.reassign`
+only moves cells between the transforms it is given.
+
+Refitted on the cells of one part alone, such a transform converges to that part's own (on
+a real-log map of the benchmark, Seattle at degree 6, two compromises 4-5 cells off, which
+made 71 % and 46 % of their parts' cells agree, converged to the true transforms, 0.0 and
+0.1 cells off, when refitted on their true parts' cells). The cells of one part are found
+locally: a part is a contiguous stretch of the robot's run, so a small square of the map
+mostly holds one. So :func:`settle`:
+
+1. lays a grid of square *tiles* of side :data:`TILE_SIDE` cells over the map;
+2. in every tile of at least :data:`MIN_TILE_CELLS` occupied cells, refits the transform
+   of each partition that makes at least
+   :data:`~brokenness.measure.recovery.SUPPORT_SHARE` (the coherence test's share) but
+   less than :data:`EXPLAINED` of the tile's cells agree, on the tile's cells, with the
+   refinement of the recursion's hypotheses (rotation sweep, trimmed ICP, compass search,
+   :mod:`~brokenness.measure.refine`; :data:`REFITS` times): each refit is a *candidate*
+   transform of that partition;
+3. replaces, one at a time, the transform of a partition by one of its own candidates when
+   that makes more cells of the map agree with the reference under some partition (the
+   union of the cells explained, the count the recursion itself maximises), the largest
+   gain first, until no replacement adds a cell; then every cell goes to its best
+   partition again (:func:`~brokenness.measure.partitions.reassign`).
+
+The number of partitions does not change here, and a transform moves only where the cells
+of its own partition pull it and the whole map agrees more.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..masking import ReferenceIndex
+from ..transform import RigidTransform
+from .options import Settings
+from .partitions import Found, reassign
+from .recovery import SUPPORT_SHARE
+from .refine import polish_transform, refine_transform, sweep_rotation
+
+__all__ = ["EXPLAINED", "MIN_TILE_CELLS", "TILE_SIDE", "settle"]
+
+#: Side of the square tiles, in cells of the working grid: twice the window of the
+#: coherence test (``2 SUPPORT_RADIUS + 1`` cells), small enough that most tiles hold one
+#: part, large enough to hold walls of two directions.
+TILE_SIDE = 50
+#: A tile is refitted only if it holds at least this many occupied cells (the refinement
+#: samples up to thousands; 60 cells are a few metres of wall).
+MIN_TILE_CELLS = 60
+#: Rounds of refinement per tile and partition.
+REFITS = 2
+#: A tile whose partition already makes this share of its cells agree is not refitted.
+EXPLAINED = 0.95
+
+
+def settle(
+    found: list[Found],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
+) -> list[Found]:
+    """Refit each partition's transform on tiles of its cells; keep what explains more.
+
+    Parameters
+    ----------
+    found : list of Found
+        The partitions (members index ``points``).
+    points : ndarray, shape (N, 2)
+        The map's occupied cells, ``(x, y)``.
+    index : ReferenceIndex
+        The reference.
+    settings : Settings
+        The per-map settings (``threshold``, ``loose``, ``min_cells``).
+
+    Returns
+    -------
+    list of Found
+        The partitions, in the order given, with their settled transforms and cells.
+    """
+    if not found:
+        return found
+    threshold = settings.threshold
+    transforms = [f.transform for f in found]
+    agree = np.stack([index.occupied_agreement(t.apply(points), threshold) for t in transforms])
+    seeds, candidates = _candidates(transforms, agree, points, index, settings)
+    if not candidates:
+        return found
+    offered = np.stack([index.occupied_agreement(t.apply(points), threshold) for t in candidates])
+    seeds_arr = np.asarray(seeds)
+    while True:
+        covered = agree.sum(axis=0)
+        explained = int(np.count_nonzero(covered))
+        best_gain, best = 0, None
+        for j in range(len(transforms)):
+            mine = np.flatnonzero(seeds_arr == j)
+            if mine.size == 0:
+                continue
+            others = (covered - agree[j]) > 0
+            gains = np.count_nonzero(others | offered[mine], axis=1) - explained
+            k = int(np.argmax(gains))
+            if gains[k] > best_gain:
+                best_gain, best = int(gains[k]), (j, int(mine[k]))
+        if best is None:
+            break
+        j, c = best
+        transforms[j], agree[j] = candidates[c], offered[c]
+        seeds_arr[c] = -1  # used
+    if all(t is f.transform for t, f in zip(transforms, found, strict=True)):
+        return found
+    moved = [
+        Found(t, f.members, f.confidence, f.seconds) for t, f in zip(transforms, found, strict=True)
+    ]
+    return reassign(moved, points, index, threshold, settings.min_cells)
+
+
+def _candidates(
+    transforms: list[RigidTransform],
+    agree: NDArray[np.bool_],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
+) -> tuple[list[int], list[RigidTransform]]:
+    """Per tile, the refits of the partitions that explain part of its cells (step 2)."""
+    tile = (points[:, 1] // TILE_SIDE).astype(np.int64) * (1 << 32) + (
+        points[:, 0] // TILE_SIDE
+    ).astype(np.int64)
+    order = np.argsort(tile, kind="stable")
+    _, starts = np.unique(tile[order], return_index=True)
+    bounds = [*starts[1:], order.size]
+    seeds: list[int] = []
+    candidates: list[RigidTransform] = []
+    for start, stop in zip(starts, bounds, strict=True):
+        cells = order[start:stop]
+        if cells.size < MIN_TILE_CELLS:
+            continue
+        share = agree[:, cells].mean(axis=1)
+        for j in np.flatnonzero((share >= SUPPORT_SHARE) & (share < EXPLAINED)):
+            refit = transforms[j]
+            for _ in range(REFITS):
+                refit = _refit(refit, points[cells], index, settings)
+            if refit is not transforms[j]:
+                seeds.append(int(j))
+                candidates.append(refit)
+    return seeds, candidates
+
+
+def _refit(
+    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, settings: Settings
+) -> RigidTransform:
+    """The refinement of the recursion's hypotheses (sweep, ICP, polish) on ``cells``."""
+    threshold = settings.threshold
+    moved = transform.apply(cells)
+    agree = index.occupied_agreement(moved, threshold)
+    if not agree.any():
+        return transform
+    pivot = moved[agree].mean(axis=0)
+    swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
+    fitted = refine_transform(swept, cells, index.nearest_points, gate=settings.loose)
+    polished = polish_transform(
+        fitted,
+        cells[index.occupied_agreement(fitted.apply(cells), threshold)],
+        index.occupied_distance,
+        threshold,
+    )
+    return polished

@@ -1,0 +1,98 @@
+"""Settle: a compromise transform refitted where its partition's cells are.
+
+Building 31 (a real map, 520 x 520 cells) cut in two halves, the right half turned by 1.5
+degrees about its centre and shifted by 3 cells: two parts only a little off from each
+other, as a bump close to where the robot then mapped makes them. Given the two partitions
+with their cells but with transforms halfway between the two parts' (what a registration of
+a remainder holding cells of both gives), :func:`settle` must move each transform back to
+its own part's and give the cells back to their parts.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brokenness import OccupancyMap, RigidTransform, load_map
+from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.options import Settings
+from brokenness.measure.partitions import Found
+from brokenness.measure.settle import settle
+
+DATA = Path(__file__).parent / "data"
+SETTINGS = Settings(
+    threshold=2.0,
+    loose=4.0,
+    min_cells=30,
+    significance=6.0,
+    max_partitions=16,
+    max_candidates=6,
+    uses_free=True,
+    drop_isolated=True,
+)
+
+
+@pytest.fixture(scope="module")
+def reference() -> OccupancyMap:
+    m = load_map(DATA / "building_31.yaml")
+    states = np.full((520, 520), -1, np.int8)
+    h, w = m.shape
+    r0, c0 = max((h - 520) // 2, 0), max((w - 520) // 2, 0)
+    crop = m.states[r0 : r0 + 520, c0 : c0 + 520]
+    states[: crop.shape[0], : crop.shape[1]] = crop
+    return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
+
+
+def _turn(deg: float, about: tuple[float, float], shift: tuple[float, float]) -> RigidTransform:
+    a = np.radians(deg)
+    c, s = np.cos(a), np.sin(a)
+    x, y = about
+    return RigidTransform(a, x - c * x + s * y + shift[0], y - s * x - c * y + shift[1])
+
+
+def _two_parts(reference: OccupancyMap):
+    """The reference's occupied cells, the right half moved by ``off``; both truths."""
+    points = cell_points(reference.occupied)
+    right = points[:, 0] >= 260
+    off = _turn(1.5, (390.0, 260.0), (3.0, -2.0))
+    moved = points.copy()
+    moved[right] = off.apply(points[right])
+    truths = [RigidTransform(0.0, 0.0, 0.0), off.inverse()]
+    return moved, right, truths
+
+
+def test_compromise_transforms_settle_on_their_parts(reference: OccupancyMap) -> None:
+    points, right, truths = _two_parts(reference)
+    index = ReferenceIndex.build(reference)
+    halfway = _turn(-0.75, (390.0, 260.0), (-1.5, 1.0))  # between the two parts
+    # each partition holds most of its part's cells and a share of the other's
+    members = [np.flatnonzero(~right | (np.arange(right.size) % 5 == 0)), np.flatnonzero(right)]
+    found = [
+        Found(RigidTransform(0.0, 0.0, 0.0), members[0], 1.0, 0.0),
+        Found(halfway, members[1], 1.0, 0.0),
+    ]
+    before = np.median(halfway.displacement(truths[1], points[right]))
+    settled = settle(found, points, index, SETTINGS)
+    assert len(settled) == 2
+    after = np.median(settled[1].transform.displacement(truths[1], points[right]))
+    assert before > 2.0, before
+    assert after < 1.0, after
+    # the cells went back to their parts
+    owner = np.full(points.shape[0], -1)
+    for j, f in enumerate(settled):
+        owner[f.members] = j
+    assert np.mean(owner[right] == 1) > 0.9 and np.mean(owner[~right] == 0) > 0.9
+
+
+def test_right_transforms_stay(reference: OccupancyMap) -> None:
+    points, right, truths = _two_parts(reference)
+    index = ReferenceIndex.build(reference)
+    found = [
+        Found(truths[0], np.flatnonzero(~right), 1.0, 0.0),
+        Found(truths[1], np.flatnonzero(right), 1.0, 0.0),
+    ]
+    settled = settle(found, points, index, SETTINGS)
+    for f, t, part in zip(settled, truths, (~right, right), strict=True):
+        assert np.median(f.transform.displacement(t, points[part])) < 0.5
