@@ -129,7 +129,6 @@ from .partitions import (
     drop_redundant,
     labels_in_original_grid,
     merge_target,
-    reassign,
     with_fringe,
 )
 from .recovery import drop_incoherent, recover
@@ -240,9 +239,12 @@ def compute_brokenness(
     kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     kwargs.update(opts.registration_kwargs)
     registrar = make_registrar(method, seed=opts.seed, **kwargs)
-    thorough = None
+    # The wider search of a step that falls short, of the regions and of the recovery:
+    # iFMI with more peaks, the random walk with twice the start poses.
     if method == "ifmi":
         thorough = make_registrar(method, **{**kwargs, **_IFMI_THOROUGH_OPTIONS})
+    else:
+        thorough = _wider(registrar)
 
     points = cell_points(working.occupied)  # (N, 2), row-major order
     uses_free = bool(getattr(registrar, "uses_free_space", True))
@@ -252,10 +254,7 @@ def compute_brokenness(
     )
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    if thorough is not None:  # every cell given to its best partition, as reassign does
-        found = recover(found, points, working, index, thorough, whole, settings)
-    else:  # the random walk costs seconds a registration: no second search
-        found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    found = recover(found, points, working, index, thorough, whole, settings)
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
@@ -305,6 +304,13 @@ def compute_brokenness(
         reason=reason,
         contradiction=map_ratio,
     )
+
+
+def _wider(registrar: Registrar) -> Registrar:
+    """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
+    poses), or ``registrar`` itself for a method without one."""
+    wider = getattr(registrar, "wider", None)
+    return wider() if callable(wider) else registrar
 
 
 def _region_candidates(
