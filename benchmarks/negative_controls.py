@@ -17,7 +17,9 @@ Output: a table (pair, map cells, reference cells, measured, degree, largest sha
 seconds) on stdout and ``benchmarks/results/negative_controls.json`` (``_quick.json`` with
 ``--quick``; ``--out``).
 
-Run: ``python benchmarks/negative_controls.py [--quick] [--workers 2] [--max-seconds S]``.
+Run: ``python benchmarks/negative_controls.py [--quick] [--workers 2] [--max-seconds S]``
+(``--method random-walk [--seed N]``: with the paper's baseline registration; results
+then default to ``negative_controls[_quick]_rw.json``).
 ``--quick`` is a fixed subset of about 20 pairs; the full set is every pair of different
 places (a few hundred). ``--max-seconds`` caps the total run: pairs not started by then are
 reported as skipped.
@@ -47,13 +49,17 @@ from cases import (  # noqa: E402
 )
 
 from brokenness import compute_brokenness, load_map  # noqa: E402
+from brokenness.registration.methods import METHODS  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 CACHE = RESULTS / "controls"
 
 
-def run_pair(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
-    """Load both maps from their YAML files and compute; one JSON-ready row."""
+def run_pair(
+    job: tuple[str, str, str, str, str], method: str = "ifmi", seed: int | None = None
+) -> dict[str, Any]:
+    """Load both maps from their YAML files and compute (``compute_brokenness(...,
+    method=method, seed=seed)``); one JSON-ready row."""
     group, name_map, name_ref, path_map, path_ref = job
     warnings.simplefilter("ignore")
     m, r = load_map(path_map), load_map(path_ref)
@@ -69,7 +75,7 @@ def run_pair(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
     }
     t0 = time.perf_counter()
     try:
-        res = compute_brokenness(m, r)
+        res = compute_brokenness(m, r, method=method, seed=seed)
     except Exception as exc:  # a crash is recorded, not fatal to the run
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
@@ -144,11 +150,14 @@ def main(argv: list[str] | None = None) -> int:
         "--out", type=Path, default=None, help="default results/negative_controls[_quick].json"
     )
     ap.add_argument("--no-same-place", action="store_true", help="skip the same-place pairs")
+    ap.add_argument("--method", choices=METHODS, default="ifmi", help="registration (default ifmi)")
+    ap.add_argument(
+        "--seed", type=int, default=None, help="seed of the random walk (default: its own)"
+    )
     args = ap.parse_args(argv)
     if args.out is None:
-        args.out = RESULTS / (
-            "negative_controls_quick.json" if args.quick else "negative_controls.json"
-        )
+        suffix = ("_quick" if args.quick else "") + ("" if args.method == "ifmi" else "_rw")
+        args.out = RESULTS / f"negative_controls{suffix}.json"
     warnings.simplefilter("ignore")
     start = time.perf_counter()
     sources = control_sources()
@@ -181,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
                         "skipped": True,
                     }
                     continue
-                pending[pool.submit(run_pair, job)] = i
+                pending[pool.submit(run_pair, job, args.method, args.seed)] = i
             if not pending:
                 continue
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -201,6 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     s["wall_seconds"] = time.perf_counter() - start
     s["workers"] = args.workers
     s["quick"] = args.quick
+    s["method"] = args.method
+    s["seed"] = args.seed
     print(
         f"\nfalse claims: {s['false_claims']} of {s['controls']} controls "
         f"(errors {s['errors']}, skipped {s['skipped']}); same place measured: "

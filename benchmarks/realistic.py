@@ -54,7 +54,10 @@ Freiburg-101 and two simulated buildings at degrees 0, 2, 4, 6, 8), or the full 
 ``--degrees 0,3,8``, ``--seeds N`` (N seeds per log and 6 N simulated buildings per degree;
 ``--first-seed 1`` for a disjoint, held-out set),
 ``--logs intel,aces``; ``--compare earlier.json`` lists the cases and controls whose outcome
-changed since an earlier run.
+changed since an earlier run. ``--method random-walk`` (and ``--seed N``) runs the cases and
+the controls with the paper's baseline registration instead of iFMI
+(``compute_brokenness(..., method="random-walk", seed=N)``); the method and seed are
+recorded in the summary of the results file (default ``realistic[_quick]_rw.json``).
 """
 
 from __future__ import annotations
@@ -69,7 +72,7 @@ import warnings
 import zlib
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +92,7 @@ from brokenness import (  # noqa: E402
     save_map,
 )
 from brokenness.masking import ReferenceIndex, cell_points  # noqa: E402
+from brokenness.registration.methods import METHODS  # noqa: E402
 from brokenness.simulation import (  # noqa: E402
     Building,
     LaserRun,
@@ -495,8 +499,9 @@ def all_partitions_true(
     return bool(fits[rows, cols].all())
 
 
-def evaluate(folder: Path) -> dict[str, Any]:
-    """Compute one case through the public API; its row."""
+def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dict[str, Any]:
+    """Compute one case through the public API (``compute_brokenness(..., method=method,
+    seed=seed)``); its row."""
     warnings.simplefilter("ignore")
     truth = json.loads((folder / "truth.json").read_text())
     labels = np.load(folder / "labels.npy")
@@ -515,7 +520,7 @@ def evaluate(folder: Path) -> dict[str, Any]:
     }
     t0 = time.perf_counter()
     try:
-        res = compute_brokenness(m, r)
+        res = compute_brokenness(m, r, method=method, seed=seed)
     except Exception as exc:
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
@@ -539,8 +544,8 @@ def evaluate(folder: Path) -> dict[str, Any]:
     return row
 
 
-def _evaluate_job(folder: str) -> dict[str, Any]:
-    return evaluate(Path(folder))
+def _evaluate_job(folder: str, method: str = "ifmi", seed: int | None = None) -> dict[str, Any]:
+    return evaluate(Path(folder), method, seed)
 
 
 def tables(rows: list[dict[str, Any]]) -> str:
@@ -605,9 +610,20 @@ def main(argv: list[str] | None = None) -> int:
         "--first-seed", type=int, default=0, help="1: a set disjoint from the default (held out)"
     )
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
-    ap.add_argument("--out", type=Path, default=None, help="default results/realistic[_quick].json")
+    ap.add_argument(
+        "--out", type=Path, default=None, help="default results/realistic[_quick][_rw].json"
+    )
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
     ap.add_argument("--cache", type=Path, default=CACHE, help="folder of the generated cases")
+    ap.add_argument(
+        "--method",
+        choices=METHODS,
+        default="ifmi",
+        help="registration of compute_brokenness (cases and controls); default ifmi",
+    )
+    ap.add_argument(
+        "--seed", type=int, default=None, help="seed of the random walk (default: its own)"
+    )
     ap.add_argument(
         "--compare", type=Path, default=None, help="list the cases that changed since this run"
     )
@@ -619,13 +635,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.tables_from is not None:
         saved = json.loads(args.tables_from.read_text())
+        s = saved.get("summary", {})
+        print(f"method {s.get('method', 'ifmi')}, seed {s.get('seed')}")
         print(tables(saved["rows"]))
         print(failures(saved["rows"]))
         if saved.get("controls"):
             print(_controls_line(saved["controls"]))
         return 0
-    if args.out is None:
-        args.out = RESULTS / ("realistic_quick.json" if args.quick else "realistic.json")
+    if args.out is None:  # the random walk's results apart from iFMI's
+        suffix = ("_quick" if args.quick else "") + ("" if args.method == "ifmi" else "_rw")
+        args.out = RESULTS / f"realistic{suffix}.json"
     warnings.simplefilter("ignore")
     degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
     logs = tuple(args.logs.split(",")) if args.logs else None
@@ -662,9 +681,12 @@ def main(argv: list[str] | None = None) -> int:
     # phase 2: compute (nothing else running in the pool)
     t1 = time.perf_counter()
     with ProcessPoolExecutor(workers) as pool:
-        rows = list(pool.map(_evaluate_job, folders))
+        run_case = partial(_evaluate_job, method=args.method, seed=args.seed)
+        rows = list(pool.map(run_case, folders))
         compute_wall = time.perf_counter() - t1
-        controls = list(pool.map(_control_job, control_jobs))
+        run_control = partial(_control_job, method=args.method, seed=args.seed)
+        controls = list(pool.map(run_control, control_jobs))
+    print(f"method {args.method}, seed {args.seed}")
     print(tables(rows))
     print(failures(rows))
     if controls:
@@ -678,6 +700,8 @@ def main(argv: list[str] | None = None) -> int:
         "compute_wall_seconds": compute_wall,
         "workers": workers,
         "quick": args.quick,
+        "method": args.method,
+        "seed": args.seed,
     }
     print(
         f"\ncompute: {compute_wall:.0f} s wall on {workers} worker(s), "
@@ -730,10 +754,12 @@ def compare(old: dict[str, Any], rows: list[dict[str, Any]], controls: list[dict
     return f"\nchanged since the earlier run ({len(lines)}):\n" + ("\n".join(lines) or "-")
 
 
-def _control_job(job: tuple[str, str, str, str, str]) -> dict[str, Any]:
+def _control_job(
+    job: tuple[str, str, str, str, str], method: str = "ifmi", seed: int | None = None
+) -> dict[str, Any]:
     import negative_controls as nc
 
-    return nc.run_pair(job)
+    return nc.run_pair(job, method, seed)
 
 
 def _controls_line(controls: list[dict[str, Any]]) -> str:

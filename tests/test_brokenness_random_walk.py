@@ -106,3 +106,24 @@ def test_progress_is_shown_only_on_a_terminal(monkeypatch):
         assert callable(progress)
         progress(WalkProgress(1, 10, 300, 12, 12, 3.5, 0.97, 120, 0.1, False))
         progress(WalkProgress(1, 300, 300, 12, 0, 2.5, 0.98, 3600, 0.9, True))
+
+
+def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
+    import brokenness.measure.recursion as recursion
+    from brokenness.registration.random_walk import RandomWalkRegistrar
+
+    seen = []
+    real = recursion.recover
+
+    def spy(found, points, working, index, registrar, reference, settings):
+        seen.append(registrar)
+        return real(found, points, working, index, registrar, reference, settings)
+
+    monkeypatch.setattr(recursion, "recover", spy)
+    broken, _ = _case(depot, 1)
+    options = {"registration_options": {"walkers_per_angle": 1, "spectral_starts": 3}}
+    result = compute_brokenness(broken, depot, method="random-walk", seed=1, **options)
+    assert result.degree == 1
+    assert len(seen) == 1 and isinstance(seen[0], RandomWalkRegistrar)
+    assert seen[0].seed == 1
+    assert (seen[0].options.walkers_per_angle, seen[0].options.spectral_starts) == (2, 6)

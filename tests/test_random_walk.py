@@ -398,6 +398,22 @@ def test_walk_options_are_a_frozen_dataclass_and_keywords_override_them():
         RandomWalkRegistrar(options={"rotations": 3})  # type: ignore[arg-type]
 
 
+def test_the_wider_walk_has_twice_the_start_poses_and_the_same_seed(building):
+    reg = RandomWalkRegistrar(seed=11, walkers_per_angle=1, spectral_starts=3, **_QUICK)
+    wide = reg.wider()
+    assert wide.seed == 11
+    assert wide.options.walkers_per_angle == 2 and wide.options.spectral_starts == 6
+    assert wide.options.rotations == reg.options.rotations
+    assert wide.options.max_iterations == reg.options.max_iterations
+    assert RandomWalkRegistrar(spectral_starts=0).wider().options.spectral_starts == 0
+    # it takes the same prepared reference, and repeats itself bit for bit
+    moving, _ = _moved_copy(building, 25.0, (2.0, 1.0))
+    prepared = reg.prepare_reference(building)
+    a = wide.candidates(prepared, moving, 6)
+    b = reg.wider().candidates(prepared, moving, 6)
+    assert [c.transform for c in a] == [c.transform for c in b]
+
+
 def test_same_seed_same_answer_alone_and_after_other_calls(building):
     moving, _ = _moved_copy(building, 25.0, (2.0, 1.0))
     other, _ = _moved_copy(building, -100.0, (0.0, 3.0))

@@ -131,7 +131,6 @@ from .partitions import (
     drop_redundant,
     labels_in_original_grid,
     merge_target,
-    reassign,
     with_fringe,
 )
 from .recovery import drop_incoherent, recover
@@ -269,9 +268,12 @@ def _compute(
     kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     kwargs.update(opts.registration_kwargs)
     registrar = make_registrar(method, seed=opts.seed, **kwargs)
-    thorough = None
+    # The wider search of a step that falls short, of the regions and of the recovery:
+    # iFMI with more peaks, the random walk with twice the start poses.
     if method == "ifmi":
         thorough = make_registrar(method, **{**kwargs, **_IFMI_THOROUGH_OPTIONS})
+    else:
+        thorough = _wider(registrar)
 
     points = original_points if working is original else cell_points(working.occupied)
     uses_free = bool(getattr(registrar, "uses_free_space", True))
@@ -288,10 +290,7 @@ def _compute(
     whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    if thorough is not None:  # every cell given to its best partition, as reassign does
-        found = recover(found, points, working, index, thorough, whole, settings)
-    else:  # the random walk costs seconds a registration: no second search
-        found = reassign(found, points, index, settings.threshold, settings.min_cells)
+    found = recover(found, points, working, index, thorough, whole, settings)
     del whole  # the prepared reference (its distance map): no registration from here on
     found = settle(found, points, index, settings)
     found = consolidate(found, points, index, settings)
@@ -363,6 +362,13 @@ def _near_claimed(
     r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
     c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
     return within_manhattan(claimed[r0:r1, c0:c1], threshold), (c0, r0)
+
+
+def _wider(registrar: Registrar) -> Registrar:
+    """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
+    poses), or ``registrar`` itself for a method without one."""
+    wider = getattr(registrar, "wider", None)
+    return wider() if callable(wider) else registrar
 
 
 def _region_candidates(

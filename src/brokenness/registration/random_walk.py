@@ -615,6 +615,27 @@ class RandomWalkRegistrar:
         )
         return _to_candidates(walk, prepared_reference, full, self.options, max_candidates)
 
+    def wider(self) -> RandomWalkRegistrar:
+        """The same walk with twice the start poses: ``walkers_per_angle`` and
+        ``spectral_starts`` doubled (0 stays 0: the pure stochastic search stays pure),
+        same seed, budgets and progress callback.
+
+        The wider search of :func:`brokenness.compute_brokenness` (a step that falls short,
+        regions of a heavily broken remainder, the recovery of lost partitions), as iFMI's
+        is iFMI with more peaks. It takes the same prepared reference as this registrar.
+        """
+        opt = self.options
+        return RandomWalkRegistrar(
+            seed=self.seed,
+            options=replace(
+                opt,
+                walkers_per_angle=2 * opt.walkers_per_angle,
+                spectral_starts=2 * opt.spectral_starts,
+            ),
+            progress=self.progress,
+            progress_every=self.progress_every,
+        )
+
     def register(
         self, reference_states: NDArray[np.int8], moving_states: NDArray[np.int8]
     ) -> Candidate:
