@@ -292,10 +292,13 @@ def _compute(
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
     found = recover(found, points, working, index, thorough, whole, settings)
     del whole  # the prepared reference (its distance map): no registration from here on
-    found = settle(found, points, index, settings)
     found = consolidate(found, points, index, settings)
     found = drop_incoherent(found, points, index, settings, working.shape)
     found = drop_redundant(found, points, index, settings)
+    settled = settle(found, points, index, settings)
+    if settled is not found:  # the tests again: settling moves transforms, it adds nothing
+        found = drop_incoherent(settled, points, index, settings, working.shape)
+        found = drop_redundant(found, points, index, settings)
     reason, map_ratio, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index

@@ -24,6 +24,8 @@ mostly holds one. So :func:`settle`:
    refinement of the recursion's hypotheses (rotation sweep, trimmed ICP, compass search,
    :mod:`~brokenness.measure.refine`; :data:`REFITS` times): each refit is a *candidate*
    transform of that partition;
+   Isolated cells (specks of noise, hidden from the registration too) take no part in
+   this stage.
 3. replaces, one at a time, the transform of a partition by one of its own candidates when
    that makes more cells of the map agree with the reference under some partition (the
    union of the cells explained, the count the recursion itself maximises), the largest
@@ -45,6 +47,7 @@ from .options import Settings
 from .partitions import Found, reassign
 from .recovery import SUPPORT_SHARE
 from .refine import polish_transform, refine_transform, sweep_rotation
+from .views import isolated_points
 
 __all__ = ["EXPLAINED", "MIN_TILE_CELLS", "TILE_SIDE", "settle"]
 
@@ -89,11 +92,13 @@ def settle(
         return found
     threshold = settings.threshold
     transforms = [f.transform for f in found]
-    agree = np.stack([index.occupied_agreement(t.apply(points), threshold) for t in transforms])
-    seeds, candidates = _candidates(transforms, agree, points, index, settings)
+    # specks of noise are no part's walls: they neither pull a refit nor count as explained
+    walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
+    agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
+    seeds, candidates = _candidates(transforms, agree, walls, index, settings)
     if not candidates:
         return found
-    offered = np.stack([index.occupied_agreement(t.apply(points), threshold) for t in candidates])
+    offered = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in candidates])
     seeds_arr = np.asarray(seeds)
     while True:
         covered = agree.sum(axis=0)
