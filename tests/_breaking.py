@@ -13,6 +13,7 @@ import numpy as np
 
 from brokenness import OccupancyMap, RigidTransform
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+from brokenness.measure.options import Settings
 
 
 def move_about(
@@ -90,3 +91,17 @@ def strips(shape: tuple[int, int], cuts: Sequence[float], axis: int = 1) -> list
             m[a:b, :] = True
         out.append(m)
     return out
+
+
+#: The per-map settings of the defaults for a map of a few thousand occupied cells, for tests
+#: that call the measure's stages directly.
+SETTINGS = Settings(
+    threshold=2.0,
+    loose=4.0,
+    min_cells=30,
+    significance=6.0,
+    max_partitions=16,
+    max_candidates=6,
+    uses_free=True,
+    drop_isolated=True,
+)

@@ -13,25 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _breaking import break_map, move_about
+from _breaking import SETTINGS, break_map, move_about
 
 import brokenness.measure.recovery as recovery
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.options import Settings
 from brokenness.measure.partitions import Found, consolidate
 from brokenness.measure.recovery import agreement_support
-
-_SETTINGS = Settings(
-    threshold=2.0,
-    loose=4.0,
-    min_cells=30,
-    significance=6.0,
-    max_partitions=16,
-    max_candidates=6,
-    uses_free=True,
-    drop_isolated=True,
-)
 
 DATA = Path(__file__).parent / "data"
 
@@ -136,7 +124,7 @@ def test_consolidate_joins_one_rigid_piece_and_keeps_two_apart():
         Found(RigidTransform(), top, 1.0, 0.0),
         Found(RigidTransform(0.0, 0.4, -0.3), bottom, 1.0, 0.0),  # the same piece
     ]
-    joined = consolidate(same, points, index, _SETTINGS)
+    joined = consolidate(same, points, index, SETTINGS)
     assert len(joined) == 1 and joined[0].members.size == points.shape[0]
     # the bottom half turned by 20 degrees about its centre: a broken map of degree 1
     motion = move_about((80.0, 110.0), 20.0, (0.0, 0.0))
@@ -146,6 +134,6 @@ def test_consolidate_joins_one_rigid_piece_and_keeps_two_apart():
         Found(RigidTransform(), np.arange(top.size), 1.0, 0.0),
         Found(motion.inverse(), np.arange(top.size, broken.shape[0]), 1.0, 0.0),
     ]
-    kept = consolidate(apart, broken, index, _SETTINGS)
+    kept = consolidate(apart, broken, index, SETTINGS)
     assert len(kept) == 2
     assert sorted(f.members.size for f in kept) == sorted([top.size, bottom.size])

@@ -14,24 +14,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _breaking import SETTINGS
 
 from brokenness import OccupancyMap, RigidTransform, load_map
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.options import Settings
 from brokenness.measure.partitions import Found
 from brokenness.measure.settle import settle
 
 DATA = Path(__file__).parent / "data"
-SETTINGS = Settings(
-    threshold=2.0,
-    loose=4.0,
-    min_cells=30,
-    significance=6.0,
-    max_partitions=16,
-    max_candidates=6,
-    uses_free=True,
-    drop_isolated=True,
-)
 
 
 @pytest.fixture(scope="module")
