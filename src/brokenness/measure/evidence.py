@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
-from .partitions import Found
+from .partitions import Found, owners
 from .views import isolated_points
 
 __all__ = ["MAP_RATIO", "Contradiction", "WallContradiction", "contradiction", "wall_contradiction"]
@@ -304,9 +304,7 @@ def wall_contradiction(
     distance = index.occupied_distance
     limit = 2.0 * threshold
     chance = _clear_free_share(states, distance, limit)
-    owner = np.full(points.shape[0], -1, dtype=np.intp)
-    for j, f in enumerate(found):
-        owner[f.members] = j
+    owner = owners(found, points.shape[0])
     assigned = owner >= 0
     if not assigned.any():
         return WallContradiction(0, 0, chance)
