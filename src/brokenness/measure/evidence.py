@@ -309,8 +309,7 @@ def wall_contradiction(
     if not assigned.any():
         return WallContradiction(0, 0, chance)
     # specks of noise are not walls (the registration hides them too)
-    neighbours = cKDTree(points).query_ball_point(points, r=2.0, p=np.inf, return_length=True)
-    walls = neighbours > 1
+    walls = ~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))
     lost = walls & ~assigned
     if lost.any():  # the partition of the nearest assigned cell
         _, nearest = cKDTree(points[assigned]).query(points[lost])
