@@ -18,9 +18,10 @@ mostly holds one. So :func:`settle`:
 
 1. lays a grid of square *tiles* of side :data:`TILE_SIDE` cells over the map;
 2. in every tile of at least :data:`MIN_TILE_CELLS` occupied cells, refits the transform
-   of each partition that makes at least
-   :data:`~brokenness.measure.recovery.SUPPORT_SHARE` (the coherence test's share) but
-   less than :data:`EXPLAINED` of the tile's cells agree, on the tile's cells, with the
+   of the partition that makes most of the tile's cells agree (a tile mostly holds one
+   part), if it makes at least :data:`~brokenness.measure.recovery.SUPPORT_SHARE` (the
+   coherence test's share) but less than :data:`EXPLAINED` of them agree, on the tile's
+   cells, with the
    refinement of the recursion's hypotheses (rotation sweep, trimmed ICP, compass search,
    :mod:`~brokenness.measure.refine`; :data:`REFITS` times): each refit is a *candidate*
    transform of that partition;
@@ -133,7 +134,7 @@ def _candidates(
     index: ReferenceIndex,
     settings: Settings,
 ) -> tuple[list[int], list[RigidTransform]]:
-    """Per tile, the refits of the partitions that explain part of its cells (step 2)."""
+    """Per tile, the refit of the partition that explains most of its cells (step 2)."""
     tile = (points[:, 1] // TILE_SIDE).astype(np.int64) * (1 << 32) + (
         points[:, 0] // TILE_SIDE
     ).astype(np.int64)
@@ -147,12 +148,13 @@ def _candidates(
         if cells.size < MIN_TILE_CELLS:
             continue
         share = agree[:, cells].mean(axis=1)
-        for j in np.flatnonzero((share >= SUPPORT_SHARE) & (share < EXPLAINED)):
+        j = int(np.argmax(share))  # the partition of the tile: a tile mostly holds one part
+        if SUPPORT_SHARE <= share[j] < EXPLAINED:
             refit = transforms[j]
             for _ in range(REFITS):
                 refit = _refit(refit, points[cells], index, settings)
             if refit is not transforms[j]:
-                seeds.append(int(j))
+                seeds.append(j)
                 candidates.append(refit)
     return seeds, candidates
 
