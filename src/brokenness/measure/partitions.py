@@ -272,7 +272,7 @@ def consolidate(
     threshold, merge_threshold, min_cells = settings.threshold, settings.loose, settings.min_cells
     while len(found) > 1:
         for j in sorted(range(len(found)), key=lambda q: (found[q].members.size, q)):
-            joined = _joined(found, j, points, index, threshold, merge_threshold)
+            joined = _joined(found, j, points, index, threshold, merge_threshold, min_cells)
             if joined is not None:
                 break
         else:
@@ -290,6 +290,7 @@ def _joined(
     index: ReferenceIndex,
     threshold: float,
     merge_threshold: float,
+    min_cells: int,
 ) -> tuple[int, Found] | None:
     """The partition ``j`` joins (its index) and the joined partition, if any."""
     others = [q for q in range(len(found)) if q != j]
@@ -301,12 +302,14 @@ def _joined(
     i = others[target]
     union = np.concatenate([found[i].members, found[j].members])
     pts = points[union]
-    agreeing = [
-        int(np.count_nonzero(index.occupied_agreement(found[q].transform.apply(pts), threshold)))
-        for q in (i, j)
-    ]
-    keep = found[i] if agreeing[0] >= agreeing[1] else found[j]
+    agree = [index.occupied_agreement(found[q].transform.apply(pts), threshold) for q in (i, j)]
+    agreeing = [int(np.count_nonzero(a)) for a in agree]
+    kept = 0 if agreeing[0] >= agreeing[1] else 1
+    keep = (found[i], found[j])[kept]
     if max(agreeing) < JOIN_SHARE * union.size:
+        return None
+    # the transform given up must have no evidence of its own (the test of drop_redundant)
+    if np.count_nonzero(agree[1 - kept] & ~agree[kept]) >= min_cells:
         return None
     return i, Found(keep.transform, union, keep.confidence, found[i].seconds + found[j].seconds)
 

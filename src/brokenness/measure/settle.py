@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from ..masking import ReferenceIndex
 from ..transform import RigidTransform
 from .options import Settings
-from .partitions import Found, reassign
+from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
 from .refine import polish_transform, refine_transform, sweep_rotation
 from .views import isolated_points
@@ -63,6 +63,11 @@ MIN_TILE_CELLS = 60
 REFITS = 2
 #: A tile whose partition already makes this share of its cells agree is not refitted.
 EXPLAINED = 0.95
+#: Refits that put every cell of their partition within this many cells of each other are
+#: one fit for a split (the first is kept).
+SAME_FIT = 1.0
+#: At most this many distinct refits of a partition are paired in the search for a split.
+MAX_SPLIT_REFITS = 32
 
 
 def settle(
@@ -101,6 +106,7 @@ def settle(
         return found
     offered = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in candidates])
     seeds_arr = np.asarray(seeds)
+    added: list[Found] = []
     while True:
         covered = agree.sum(axis=0)
         explained = int(np.count_nonzero(covered))
@@ -114,17 +120,134 @@ def settle(
             k = int(np.argmax(gains))
             if gains[k] > best_gain:
                 best_gain, best = int(gains[k]), (j, int(mine[k]))
-        if best is None:
+        if best is not None:
+            j, c = best
+            transforms[j], agree[j] = candidates[c], offered[c]
+            seeds_arr[c] = -1  # used
+            continue
+        # no replacement adds a cell: a partition whose refits disagree may be two parts
+        # (step 4)
+        if len(transforms) >= settings.max_partitions:
             break
-        j, c = best
-        transforms[j], agree[j] = candidates[c], offered[c]
-        seeds_arr[c] = -1  # used
-    if all(t is f.transform for t, f in zip(transforms, found, strict=True)):
+        split = _best_split(
+            transforms, agree, candidates, offered, seeds_arr, walls, index, settings
+        )
+        if split is None:
+            break
+        j, a, b, confidence = split
+        if a >= 0:
+            transforms[j], agree[j] = candidates[a], offered[a]
+            seeds_arr[a] = -1
+        transforms.append(candidates[b])
+        agree = np.vstack([agree, offered[b][None]])
+        added.append(Found(candidates[b], np.zeros(0, np.intp), confidence, 0.0))
+        seeds_arr[b] = -1
+    if not added and all(t is f.transform for t, f in zip(transforms, found, strict=True)):
         return found
     moved = [
-        Found(t, f.members, f.confidence, f.seconds) for t, f in zip(transforms, found, strict=True)
+        Found(t, f.members, f.confidence, f.seconds)
+        for t, f in zip(transforms[: len(found)], found, strict=True)
     ]
-    return reassign(moved, points, index, threshold, settings.min_cells)
+    settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
+    if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
+        return settle(settled, points, index, settings)
+    return settled
+
+
+def _best_split(
+    transforms: list[RigidTransform],
+    agree: NDArray[np.bool_],
+    candidates: list[RigidTransform],
+    offered: NDArray[np.bool_],
+    seeds: NDArray[np.intp],
+    walls: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
+) -> tuple[int, int, int, float] | None:
+    """The split of a partition in two that explains the most cells more than it does.
+
+    Returns ``(j, a, b, confidence)``: partition ``j``'s transform is replaced by its refit
+    ``a`` (``-1``: kept) and its refit ``b`` is added, if the two explain more of the cells
+    that no other partition explains than ``j`` alone, each of them passes the stopping rule
+    as the recursion would take it after the other (among those cells, less the ones the
+    other explains), and the cells it explains alone are not explained loosely by the
+    other's transform (the recursion's merge test,
+    :func:`~brokenness.measure.partitions.merge_target`: the two are off from each other).
+    """
+    covered = agree.sum(axis=0)
+    p0 = index.chance_agreement(settings.threshold)
+    best, best_gain = None, 0
+    for j in range(agree.shape[0]):
+        others = (covered - agree[j]) > 0
+        mine = _distinct(j, seeds, candidates, offered, walls[agree[j]], ~others)
+        if mine.size == 0:
+            continue
+        open_cells = int(np.count_nonzero(~others))
+        names = np.concatenate([[-1], mine])
+        halves = np.vstack([agree[j][None], offered[mine]])[:, ~others]  # (1 + M, open)
+        h = halves.astype(np.float32)
+        both = (h @ h.T).astype(np.int64)  # cells two halves explain (exact: sums of ones)
+        counts = np.diagonal(both)
+        only = counts[:, None] - both  # only[x, y]: cells x explains and y does not
+        gain = counts[:, None] + counts[None, :] - both - counts[0]
+        # each half as the recursion would take it after the other: the cells it explains
+        # among those the other leaves pass the stopping rule
+        needed = np.array([settings.needed(open_cells - int(c), p0)[2] for c in counts])
+        ok = (only >= needed[None, :]) & (only.T >= needed[:, None]) & (gain > best_gain)
+        ok[:, 0] = False  # the partition's own transform is kept (x = 0), never added
+        np.fill_diagonal(ok, False)
+        xs, ys = np.nonzero(ok)
+        for q in np.lexsort((ys, xs, -gain[xs, ys])):  # the largest gain first
+            x, y = int(xs[q]), int(ys[q])
+            tx = transforms[j] if x == 0 else candidates[int(names[x])]
+            ty = candidates[int(names[y])]
+            only_x = np.flatnonzero(~others)[halves[x] & ~halves[y]]
+            only_y = np.flatnonzero(~others)[halves[y] & ~halves[x]]
+            if _explains(tx, walls[only_y], index, settings) or _explains(
+                ty, walls[only_x], index, settings
+            ):
+                continue
+            chance = settings.needed(open_cells - int(counts[x]), p0)[0]
+            ky = int(only[y, x])
+            best, best_gain = (j, int(names[x]), int(names[y]), (ky - chance) / ky), int(gain[x, y])
+            break
+    return best
+
+
+def _distinct(
+    j: int,
+    seeds: NDArray[np.intp],
+    candidates: list[RigidTransform],
+    offered: NDArray[np.bool_],
+    cells: NDArray[np.float64],
+    open_cells: NDArray[np.bool_],
+) -> NDArray[np.intp]:
+    """Partition ``j``'s unused refits that a split may use: of refits that put its cells
+    within a cell of each other (:data:`SAME_FIT`) the first, and at most
+    :data:`MAX_SPLIT_REFITS` of them, those explaining the most open cells first."""
+    mine = np.flatnonzero(seeds == j)
+    if mine.size == 0 or cells.shape[0] == 0:
+        return mine
+    sample = cells[:: max(1, cells.shape[0] // 256)]
+    placed = np.stack([candidates[int(c)].apply(sample) for c in mine])  # (M, S, 2)
+    kept: list[int] = []
+    for q in range(mine.size):
+        if all(float(np.linalg.norm(placed[q] - placed[k], axis=1).max()) > SAME_FIT for k in kept):
+            kept.append(q)
+    distinct = mine[kept]
+    explained = np.count_nonzero(offered[distinct] & open_cells, axis=1)
+    order = np.lexsort((distinct, -explained))[:MAX_SPLIT_REFITS]
+    return np.sort(distinct[order])
+
+
+def _explains(
+    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, settings: Settings
+) -> bool:
+    """``transform`` explains ``cells`` loosely (the merge test of the recursion)."""
+    return merge_target([Found(transform, _NO_CELLS, 0.0, 0.0)], cells, index, settings.loose) == 0
+
+
+_NO_CELLS = np.zeros(0, dtype=np.intp)
 
 
 def _candidates(
