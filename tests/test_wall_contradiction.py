@@ -67,4 +67,3 @@ def test_a_piece_that_fits_does_not_carry_another_place(reference: OccupancyMap)
     alone = cell_points(piece)
     found_alone = [Found(IDENTITY, np.arange(alone.shape[0]), 1.0, 0.0)]
     assert wall_contradiction(found_alone, alone, index, 2.0).contradicting == 0
-

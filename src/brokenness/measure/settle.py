@@ -33,8 +33,24 @@ mostly holds one. So :func:`settle`:
    gain first, until no replacement adds a cell; then every cell goes to its best
    partition again (:func:`~brokenness.measure.partitions.reassign`).
 
-The number of partitions does not change here, and a transform moves only where the cells
-of its own partition pull it and the whole map agrees more.
+4. when no replacement adds a cell, *splits* a partition in two if its refits say it holds
+   two parts: the compromise of two parts at one rotation, shifted against each other (a
+   pure-shift bump), is refitted to one part on that part's tiles and to the other on the
+   other's. Of the cells no other partition explains, the pair of transforms (the
+   partition's own or one of its refits, and another of its refits) must explain more than
+   the partition does alone; each must pass the recursion's stopping rule as the recursion
+   would have taken it after the other (the cells it explains among those the other leaves,
+   against the chance of a random placement); and the cells each explains alone must not be
+   explained loosely by the other's transform (the recursion's merge test,
+   :func:`~brokenness.measure.partitions.merge_target`: the two are off from each other,
+   not one part with a residual error). The split that explains most is made, and steps
+   3-4 are repeated; once a split is made, the whole step runs again with the new
+   partitions' own tiles. Of refits that put a partition's cells within
+   :data:`SAME_FIT` of each other only the first is paired, and at most
+   :data:`MAX_SPLIT_REFITS` of them (those explaining the most cells).
+
+A transform moves only where the cells of its own partition pull it and the whole map agrees
+more; a partition is added only with the evidence a new partition of the recursion needs.
 """
 
 from __future__ import annotations
@@ -66,6 +82,13 @@ EXPLAINED = 0.95
 #: Refits that put every cell of their partition within this many cells of each other are
 #: one fit for a split (the first is kept).
 SAME_FIT = 1.0
+#: A tile's partition is also refitted from the best whole-cell shift of its transform
+#: within this many cells (half a tile): parts shifted farther than the refinement reaches.
+MAX_SHIFT = TILE_SIDE // 2
+#: ... counted on at most this many cells (an even stride of them), in chunks of
+#: ``_SHIFT_CHUNK`` cells (bounded temporaries).
+SHIFT_SAMPLE = 1000
+_SHIFT_CHUNK = 64
 #: At most this many distinct refits of a partition are paired in the search for a split.
 MAX_SPLIT_REFITS = 32
 
@@ -76,7 +99,8 @@ def settle(
     index: ReferenceIndex,
     settings: Settings,
 ) -> list[Found]:
-    """Refit each partition's transform on tiles of its cells; keep what explains more.
+    """Refit each partition's transform on tiles of its cells; keep what explains more, and
+    split a partition whose refits are two parts (see the module docstring).
 
     Parameters
     ----------
@@ -92,7 +116,8 @@ def settle(
     Returns
     -------
     list of Found
-        The partitions, in the order given, with their settled transforms and cells.
+        The partitions, in the order given, with their settled transforms and cells; the
+        halves split off after them.
     """
     if not found:
         return found
@@ -102,6 +127,8 @@ def settle(
     walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
     agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
     seeds, candidates = _candidates(transforms, agree, walls, index, settings)
+    more_seeds, more = _shifted_copies(transforms, agree, walls, index, settings)
+    seeds, candidates = seeds + more_seeds, candidates + more
     if not candidates:
         return found
     offered = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in candidates])
@@ -185,8 +212,8 @@ def _best_split(
         open_cells = int(np.count_nonzero(~others))
         names = np.concatenate([[-1], mine])
         halves = np.vstack([agree[j][None], offered[mine]])[:, ~others]  # (1 + M, open)
-        h = halves.astype(np.float32)
-        both = (h @ h.T).astype(np.int64)  # cells two halves explain (exact: sums of ones)
+        # both[x, y]: the open cells halves x and y both explain
+        both = np.stack([np.count_nonzero(halves & row, axis=1) for row in halves])
         counts = np.diagonal(both)
         only = counts[:, None] - both  # only[x, y]: cells x explains and y does not
         gain = counts[:, None] + counts[None, :] - both - counts[0]
@@ -280,6 +307,70 @@ def _candidates(
                 seeds.append(j)
                 candidates.append(refit)
     return seeds, candidates
+
+
+def _shifted_copies(
+    transforms: list[RigidTransform],
+    agree: NDArray[np.bool_],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
+) -> tuple[list[int], list[RigidTransform]]:
+    """Per partition, its transform shifted to where most cells no partition explains agree."""
+    left = ~agree.any(axis=0)
+    seeds: list[int] = []
+    candidates: list[RigidTransform] = []
+    if np.count_nonzero(left) < settings.min_cells:
+        return seeds, candidates
+    for j, t in enumerate(transforms):
+        shifted = _shift_search(t, points[left], index, settings.threshold)
+        if shifted is None:
+            continue
+        cells = points[left | agree[j]]
+        refit = shifted
+        for _ in range(REFITS):
+            refit = _refit(refit, cells, index, settings)
+        seeds.append(j)
+        candidates.append(refit)
+    return seeds, candidates
+
+
+def _shift_search(
+    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, threshold: float
+) -> RigidTransform | None:
+    """``transform`` followed by the whole-cell shift, within :data:`MAX_SHIFT` cells, that
+    makes the most ``cells`` agree, if it makes more agree than no shift (``None`` if not).
+
+    The refinement's trimmed ICP only pulls on cells within the loose threshold, so it cannot
+    reach a part shifted farther against a partition (a pure-shift bump of half a metre is
+    10 cells at 5 cm). Every shift is counted on at most :data:`SHIFT_SAMPLE` of the cells
+    (an even stride of them), by lookups in the reference's agreement mask around them.
+    """
+    picked = cells[:: max(1, -(-cells.shape[0] // SHIFT_SAMPLE))]
+    moved = np.rint(transform.apply(picked)).astype(np.int64)
+    h, w = index.occupied_distance.shape
+    x0, y0 = moved.min(axis=0) - MAX_SHIFT
+    x1, y1 = moved.max(axis=0) + MAX_SHIFT + 1
+    cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+    if cx0 >= cx1 or cy0 >= cy1:
+        return None
+    width = int(x1 - x0)
+    window = np.zeros((int(y1 - y0), width), dtype=bool)  # the agreement mask, zero outside
+    window[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0] = (
+        index.occupied_distance[cy0:cy1, cx0:cx1] <= threshold
+    )
+    flat = window.ravel()
+    at = (moved[:, 1] - y0) * width + (moved[:, 0] - x0)
+    steps = np.arange(-MAX_SHIFT, MAX_SHIFT + 1)
+    offsets = (steps[:, None] * width + steps[None, :]).ravel()  # (dy, dx), row-major
+    counts = np.zeros(offsets.size, dtype=np.int64)
+    for start in range(0, at.size, _SHIFT_CHUNK):
+        counts += flat[at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]].sum(axis=0)
+    best = int(np.argmax(counts))  # the first of ties
+    if counts[best] <= counts[offsets.size // 2]:
+        return None
+    dy, dx = divmod(best, steps.size)
+    return RigidTransform(0.0, float(dx - MAX_SHIFT), float(dy - MAX_SHIFT)).compose(transform)
 
 
 def _refit(
