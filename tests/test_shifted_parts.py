@@ -101,3 +101,15 @@ def test_settle_does_not_split_parts_within_the_loose_threshold(reference, index
     points, _, _ = _shifted(reference, (0.0, 3.0))
     found = [Found(RigidTransform(), np.arange(points.shape[0]), 1.0, 0.0)]
     assert len(settle(found, points, index, SETTINGS)) == 1
+
+
+def test_settle_finds_a_part_shifted_beyond_the_refinement(reference, index) -> None:
+    # one partition with the other part's exact transform: the shifted part is 12 cells
+    # off, beyond the trimmed ICP's reach (the loose threshold, 4), so only the shift
+    # search of its unexplained cells can place it
+    points, right, truths = _shifted(reference, SHIFT)
+    found = [Found(truths[0], np.arange(points.shape[0]), 1.0, 0.0)]
+    settled = settle(found, points, index, SETTINGS)
+    assert len(settled) == 2
+    errors = [_error(f.transform, truths[1], points[right]) for f in settled]
+    assert min(errors) < 1.0, errors

@@ -26,7 +26,11 @@ mostly holds one. So :func:`settle`:
    :mod:`~brokenness.measure.refine`; :data:`REFITS` times): each refit is a *candidate*
    transform of that partition;
    Isolated cells (specks of noise, hidden from the registration too) take no part in
-   this stage.
+   this stage. The refinement pulls only on cells within the loose threshold, so it cannot
+   reach a part that a pure-shift bump moved farther against its neighbour (half a metre
+   is 10 cells at 5 cm): every partition's transform is also shifted, by whole cells
+   within :data:`MAX_SHIFT`, to where the most cells that no partition explains agree, and
+   refitted there (on those cells and its own), a candidate of that partition too;
 3. replaces, one at a time, the transform of a partition by one of its own candidates when
    that makes more cells of the map agree with the reference under some partition (the
    union of the cells explained, the count the recursion itself maximises), the largest
