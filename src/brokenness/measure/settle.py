@@ -34,9 +34,7 @@ mostly holds one. So :func:`settle`:
 3. replaces, one at a time, the transform of a partition by one of its own candidates when
    that makes more cells of the map agree with the reference under some partition (the
    union of the cells explained, the count the recursion itself maximises), the largest
-   gain first, until no replacement adds a cell; then every cell goes to its best
-   partition again (:func:`~brokenness.measure.partitions.reassign`).
-
+   gain first, until no replacement adds a cell;
 4. when no replacement adds a cell, *splits* a partition in two if its refits say it holds
    two parts: the compromise of two parts at one rotation, shifted against each other (a
    pure-shift bump), is refitted to one part on that part's tiles and to the other on the
@@ -51,7 +49,9 @@ mostly holds one. So :func:`settle`:
    3-4 are repeated; once a split is made, the whole step runs again with the new
    partitions' own tiles. Of refits that put a partition's cells within
    :data:`SAME_FIT` of each other only the first is paired, and at most
-   :data:`MAX_SPLIT_REFITS` of them (those explaining the most cells).
+   :data:`MAX_SPLIT_REFITS` of them (those explaining the most cells);
+5. gives every cell to its best partition again
+   (:func:`~brokenness.measure.partitions.reassign`).
 
 A transform moves only where the cells of its own partition pull it and the whole map agrees
 more; a partition is added only with the evidence a new partition of the recursion needs.
