@@ -59,7 +59,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path, help="the YAML to write (its PNG beside it)")
     args = parser.parse_args()
-    path = save_map(OccupancyMap(grid_of_walls(), 0.05, (0.0, 0.0, 0.0)), args.out, image_format="png")
+    walls = OccupancyMap(grid_of_walls(), 0.05, (0.0, 0.0, 0.0))
+    path = save_map(walls, args.out, image_format="png")
     png = path.with_suffix(".png")
     print(f"{path} and {png} ({png.stat().st_size} bytes)")
 

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ..errors import MapError
-from ..grid import OccupancyMap
+from ..grid import UNKNOWN, OccupancyMap
 from .distance import lookup_distance, manhattan_distance_map, sample_at
 
 __all__ = [
@@ -30,6 +30,8 @@ __all__ = [
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
+#: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
+_BAND_ROWS = 512
 
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
@@ -165,15 +167,24 @@ class ReferenceIndex:
         cached = self._chance.get(threshold)
         if cached is not None:
             return cached
-        known = self.known
-        n_known = int(np.count_nonzero(known))
-        if n_known == 0:
-            value = 1.0
-        else:
-            near = (self.occupied_distance <= threshold) & known
-            value = float(np.count_nonzero(near)) / n_known
+        n_known, n_near = _known_and_near(self.reference.states, self.occupied_distance, threshold)
+        value = 1.0 if n_known == 0 else float(n_near) / n_known
         self._chance[threshold] = value
         return value
+
+
+def _known_and_near(
+    states: NDArray[np.int8], distance: NDArray[np.float32], threshold: float
+) -> tuple[int, int]:
+    """The known cells of ``states`` and those of them within ``threshold`` of ``distance``,
+    counted in bands of rows (no temporary of the grid's size)."""
+    n_known = n_near = 0
+    for r in range(0, states.shape[0], _BAND_ROWS):
+        known = states[r : r + _BAND_ROWS] != UNKNOWN
+        n_known += int(np.count_nonzero(known))
+        known &= distance[r : r + _BAND_ROWS] <= threshold
+        n_near += int(np.count_nonzero(known))
+    return n_known, n_near
 
 
 def unmatched_reference(
@@ -206,13 +217,21 @@ def unmatched_reference(
     if not inside.any():
         return out
     rows, cols = rows[inside], cols[inside]
-    # only the box of the hits, widened by the radius, can change
+    # only the box of the hits, widened by the radius, can change; it is done in bands of
+    # rows, each dilated with the hits within the radius above and below it
     radius = max(int(np.floor(threshold)), 0)
     r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, h)
     c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, w)
-    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    hit[rows - r0, cols - c0] = True
-    out[r0:r1, c0:c1] &= ~within_manhattan(hit, threshold)
+    order = np.argsort(rows, kind="stable")
+    rows, cols = rows[order], cols[order]
+    for b0 in range(r0, r1, _BAND_ROWS):
+        b1 = min(b0 + _BAND_ROWS, r1)
+        lo, hi = max(b0 - radius, r0), min(b1 + radius, r1)
+        i, j = np.searchsorted(rows, (lo, hi))
+        hit = np.zeros((hi - lo, c1 - c0), dtype=bool)
+        hit[rows[i:j] - lo, cols[i:j] - c0] = True
+        near = within_manhattan(hit, threshold)[b0 - lo : b1 - lo]
+        out[b0:b1, c0:c1] &= ~near
     return out
 
 

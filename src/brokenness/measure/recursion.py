@@ -116,7 +116,6 @@ from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
 from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
-from ..registration._spectral import bounding_box
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
@@ -161,6 +160,8 @@ _THOROUGH_BELOW = 0.4
 #: this share of the map's occupied cells (a heavily broken map, no part dominating it).
 REGIONS_FROM = 0.1
 REGION_GRIDS = (2, 3)
+#: Rows of a band of the grid-wide scans (no temporary of the grid's size).
+_BAND_ROWS = 512
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -356,15 +357,32 @@ def _near_claimed(
     """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
     and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
     (no such cell lies outside it)."""
-    claimed = occupied & ~available
-    box = bounding_box(claimed)
+    box = _claimed_box(occupied, available)
     if box is None:
         return np.zeros((0, 0), dtype=bool), (0, 0)
     radius = max(int(math.floor(threshold)), 0)
-    h, w = claimed.shape
+    h, w = occupied.shape
     r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
     c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
-    return within_manhattan(claimed[r0:r1, c0:c1], threshold), (c0, r0)
+    claimed = occupied[r0:r1, c0:c1] & ~available[r0:r1, c0:c1]
+    return within_manhattan(claimed, threshold), (c0, r0)
+
+
+def _claimed_box(
+    occupied: NDArray[np.bool_], available: NDArray[np.bool_]
+) -> tuple[int, int, int, int] | None:
+    """``bounding_box(occupied & ~available)``, scanned in bands of rows (no temporary of
+    the grid's size)."""
+    rows = np.zeros(occupied.shape[0], dtype=bool)
+    cols = np.zeros(occupied.shape[1], dtype=bool)
+    for a in range(0, occupied.shape[0], _BAND_ROWS):
+        band = occupied[a : a + _BAND_ROWS] & ~available[a : a + _BAND_ROWS]
+        rows[a : a + _BAND_ROWS] = band.any(axis=1)
+        cols |= band.any(axis=0)
+    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
+    if r.size == 0:
+        return None
+    return int(r[0]), int(r[-1]) + 1, int(c[0]), int(c[-1]) + 1
 
 
 def _wider(registrar: Registrar) -> Registrar:
@@ -620,7 +638,14 @@ def _recurse(
         # Merge into an earlier partition whose transform explains this set as well.
         target = merge_target(found, points[members], index, merge_threshold)
         remaining[members] = False
-        reference_occupied = unmatched_reference(reference_occupied, moved, threshold)
+        # the walls still available to the next step (none: this was the last step)
+        last = (
+            np.count_nonzero(remaining) < min_cells
+            or len(found) + (target is None) >= max_partitions
+            or steps >= 2 * max_partitions
+        )
+        if not last:
+            reference_occupied = unmatched_reference(reference_occupied, moved, threshold)
         elapsed = time.perf_counter() - t0
         excess = (k - chance) / k
         if target is not None:
@@ -630,6 +655,6 @@ def _recurse(
             )
         else:
             found.append(Found(transform, members, float(excess), elapsed))
-        if not reference_occupied.any():
+        if last or not reference_occupied.any():
             break
     return found
