@@ -532,7 +532,7 @@ def _recurse(
     uses_free, drop_isolated = settings.uses_free, settings.drop_isolated
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
-    reference_occupied = index.occupied  # never modified: each step makes a new mask
+    reference_occupied = index.occupied  # never modified: the first step makes a new mask
     p0 = index.chance_agreement(threshold)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[Found] = []
@@ -644,8 +644,13 @@ def _recurse(
             or len(found) + (target is None) >= max_partitions
             or steps >= 2 * max_partitions
         )
-        if not last:
-            reference_occupied = unmatched_reference(reference_occupied, moved, threshold)
+        if not last:  # a new mask the first time (the index's is kept), then in place
+            reference_occupied = unmatched_reference(
+                reference_occupied,
+                moved,
+                threshold,
+                in_place=reference_occupied is not index.occupied,
+            )
         elapsed = time.perf_counter() - t0
         excess = (k - chance) / k
         if target is not None:
