@@ -115,11 +115,11 @@ from .._memory import small_pages
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
-from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
+from ..masking import ReferenceIndex, cell_points, unmatched_reference
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
-from .choice import mostly_claimed, prefer_unexplained
+from .choice import mostly_on_claimed, prefer_unexplained
 from .evidence import MAP_RATIO, contradiction, wall_contradiction
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
@@ -160,8 +160,6 @@ _THOROUGH_BELOW = 0.4
 #: this share of the map's occupied cells (a heavily broken map, no part dominating it).
 REGIONS_FROM = 0.1
 REGION_GRIDS = (2, 3)
-#: Rows of a band of the grid-wide scans (no temporary of the grid's size).
-_BAND_ROWS = 512
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -351,40 +349,6 @@ def _compute(
     )
 
 
-def _near_claimed(
-    occupied: NDArray[np.bool_], available: NDArray[np.bool_], threshold: float
-) -> tuple[NDArray[np.bool_], tuple[int, int]]:
-    """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
-    and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
-    (no such cell lies outside it)."""
-    box = _claimed_box(occupied, available)
-    if box is None:
-        return np.zeros((0, 0), dtype=bool), (0, 0)
-    radius = max(int(math.floor(threshold)), 0)
-    h, w = occupied.shape
-    r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
-    c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
-    claimed = occupied[r0:r1, c0:c1] & ~available[r0:r1, c0:c1]
-    return within_manhattan(claimed, threshold), (c0, r0)
-
-
-def _claimed_box(
-    occupied: NDArray[np.bool_], available: NDArray[np.bool_]
-) -> tuple[int, int, int, int] | None:
-    """``bounding_box(occupied & ~available)``, scanned in bands of rows (no temporary of
-    the grid's size)."""
-    rows = np.zeros(occupied.shape[0], dtype=bool)
-    cols = np.zeros(occupied.shape[1], dtype=bool)
-    for a in range(0, occupied.shape[0], _BAND_ROWS):
-        band = occupied[a : a + _BAND_ROWS] & ~available[a : a + _BAND_ROWS]
-        rows[a : a + _BAND_ROWS] = band.any(axis=1)
-        cols |= band.any(axis=0)
-    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
-    if r.size == 0:
-        return None
-    return int(r[0]), int(r[-1]) + 1, int(c[0]), int(c[-1]) + 1
-
-
 def _wider(registrar: Registrar) -> Registrar:
     """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
     poses), or ``registrar`` itself for a method without one."""
@@ -563,7 +527,6 @@ def _recurse(
         # or the best (or the best of R') explains less than 40 % of what is left, it asks
         # once more with a wider search (``thorough``: more peaks, same prepared references)
         # for the reference(s) whose best fell short, and keeps the better answer.
-        near_claimed = None  # cells near the walls earlier partitions matched, if asked
         rest = None
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
@@ -587,10 +550,9 @@ def _recurse(
             rest_ok = True
             use_rest = rest is not None
             if not use_rest and best_whole is not None and found:
-                if near_claimed is None:
-                    near_claimed = _near_claimed(index.occupied, reference_occupied, threshold)
-                claimed, offset = near_claimed
-                use_rest = mostly_claimed(best_whole, left_points, claimed, threshold, offset)
+                use_rest = mostly_on_claimed(
+                    best_whole, left_points, index.occupied, reference_occupied, threshold
+                )
             if best_whole is not None and use_rest:
                 if rest is None:
                     rest = prepared_reference(
