@@ -143,9 +143,22 @@ def mostly_on_claimed(
 def near_claimed(
     occupied: NDArray[np.bool_], available: NDArray[np.bool_], threshold: float
 ) -> tuple[NDArray[np.bool_], tuple[int, int]]:
-    """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
-    and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
-    (no such cell lies outside it)."""
+    """The reference cells within ``threshold`` of walls earlier partitions matched.
+
+    Parameters
+    ----------
+    occupied, available : ndarray of bool
+        The reference's occupied cells, and those still available (not matched).
+    threshold : float
+        Manhattan radius (cells).
+
+    Returns
+    -------
+    (ndarray of bool, (int, int))
+        The cells within ``threshold`` of an occupied cell no longer available, as a box of
+        the grid, and the box's first cell ``(col0, row0)`` (no such cell lies outside it);
+        an empty box at ``(0, 0)`` when no wall was matched.
+    """
     box = _claimed_box(occupied, available)
     if box is None:
         return np.zeros((0, 0), dtype=bool), (0, 0)
