@@ -31,8 +31,9 @@ and the whole ``save_results``. ``--overlays fast|figure|none`` is passed to ``b
 Run: ``python benchmarks/bench_scale.py --quick`` (1.5-3 minutes: 1000² at degrees 0, 2,
 5, 8; 2000² and 4000² at degrees 2 and 5; the batch once) or without ``--quick`` (5-15
 minutes: degrees 0-8 at 1000²; 1000²-8000² at degrees 2 and 5; 10000² at degree 8
-once; the batch twice, alternating the worker counts). The load average is printed per row:
-on a shared machine, compare ratios within one run.
+once; the batch twice, alternating the worker counts). ``--case SIZE:DEGREE[:RUNS]``
+(repeatable) runs only those cases. The load average is printed per row: on a shared
+machine, compare ratios within one run.
 """
 
 from __future__ import annotations
@@ -420,6 +421,14 @@ def fixed_costs(folder: Path) -> None:
     )
 
 
+def _case(text: str) -> tuple[int, int, int]:
+    """``SIZE:DEGREE[:RUNS]`` as ``(size, degree, runs)`` (one run unless given)."""
+    parts = [int(v) for v in text.split(":")]
+    if len(parts) not in (2, 3):
+        raise SystemExit(f"--case wants SIZE:DEGREE[:RUNS], got {text!r}")
+    return parts[0], parts[1], parts[2] if len(parts) == 3 else 1
+
+
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
         child(sys.argv[2], sys.argv[3], int(sys.argv[4]), float(sys.argv[5]))
@@ -433,6 +442,13 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=None, help="batch rounds (default 1/2)")
     parser.add_argument(
         "--overlays", choices=("fast", "figure", "none"), default="fast", help="batch --overlays"
+    )
+    parser.add_argument(
+        "--case",
+        action="append",
+        default=[],
+        metavar="SIZE:DEGREE[:RUNS]",
+        help="only these cases (repeatable; e.g. --case 8000:5 --case 10000:8); no batch",
     )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
@@ -450,6 +466,9 @@ def main() -> None:
         rounds = args.rounds
     if args.batch_only:
         cases = []
+    if args.case:
+        cases = [_case(text) for text in args.case]
+        args.no_batch = True
     print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} at the start\n")
     print(
         "| cells | degree asked | expected | found | occupied cells | median s | best s | runs "

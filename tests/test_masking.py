@@ -112,3 +112,44 @@ def test_nearest_points_matches_a_kd_tree():
     assert np.all(np.linalg.norm(got[found] - pts[found], axis=1) <= 4.0)
     assert np.count_nonzero(found != (inside & reach)) <= 0.01 * len(pts)  # ties only
     assert not found[~inside].any()
+
+
+def test_picture_distance_far_apart_kinds_need_several_saturated_passes():
+    # the only free cell of b is about 600 cells from most free cells of a: distances of
+    # 255 and more come from the later one-byte passes, and must still be exact
+    a = OccupancyMap(np.zeros((400, 420), np.int8))
+    states = np.full((400, 420), -1, np.int8)
+    states[3, 5] = 0
+    states[390, 410] = 1
+    b = OccupancyMap(states)
+    free = np.argwhere(a.states == 0)
+    exact = float(np.abs(free - np.array([3, 5])).sum(axis=1).sum()) / len(free)
+    assert picture_distance(a, b) == exact + 0.0 + 0.0 + sum(a.shape)  # free a->b, b->a; occ
+    assert picture_distance(b, a) == picture_distance(a, b)
+
+
+def test_unmatched_reference_in_place_and_large_radius_agree_with_the_copy():
+    rng = np.random.default_rng(11)
+    ref = rng.random((60, 70)) < 0.3
+    hits = rng.uniform(-3, 72, (40, 2))
+    for threshold in (0.0, 2.0, 3.0, 7.5):
+        expected = ref & ~(manhattan_distance_map_of_hits(hits, ref.shape) <= threshold)
+        assert np.array_equal(unmatched_reference(ref, hits, threshold), expected)
+        inplace = ref.copy()
+        assert unmatched_reference(inplace, hits, threshold, in_place=True) is inplace
+        assert np.array_equal(inplace, expected)
+
+
+def manhattan_distance_map_of_hits(hits: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    from brokenness.masking import manhattan_distance_map
+
+    mask = np.zeros(shape, dtype=bool)
+    cells = np.rint(hits).astype(int)
+    ok = (
+        (cells[:, 0] >= 0)
+        & (cells[:, 0] < shape[1])
+        & (cells[:, 1] >= 0)
+        & (cells[:, 1] < shape[0])
+    )
+    mask[cells[ok, 1], cells[ok, 0]] = True
+    return manhattan_distance_map(mask)

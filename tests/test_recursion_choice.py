@@ -55,3 +55,22 @@ def test_mostly_claimed_counts_agreeing_cells_on_matched_walls():
     shifted = RigidTransform(0.0, 0.0, 10.0)  # none on it now
     assert not mostly_claimed((shifted, agree), points, distance, 2.0)
     assert not mostly_claimed((identity, np.zeros(len(points), bool)), points, distance, 2.0)
+
+
+def test_mostly_on_claimed_is_mostly_claimed_of_the_dilated_matched_walls():
+    import brokenness.measure.choice as choice
+    from brokenness.measure.choice import mostly_claimed, mostly_on_claimed, near_claimed
+
+    rng = np.random.default_rng(2)
+    for trial in range(60):
+        occupied = rng.random((30, 40)) < 0.3
+        available = occupied & (rng.random((30, 40)) < 0.5)
+        points = rng.uniform(-2, 42, (50, 2))
+        agree = rng.random(50) < 0.8
+        transform = RigidTransform(float(rng.uniform(-0.2, 0.2)), 1.0, -1.0)
+        threshold = (0.0, 1.0, 2.0, 3.5, 6.0)[trial % 5]  # 6: the dilation path
+        claimed, offset = near_claimed(occupied, available, threshold)
+        expected = mostly_claimed((transform, agree), points, claimed, threshold, offset)
+        got = mostly_on_claimed((transform, agree), points, occupied, available, threshold)
+        assert got == expected
+    assert choice._LOOKUP_BALL < 2 * 6 * 7 + 1

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ..errors import MapError
-from ..grid import OccupancyMap
+from ..grid import UNKNOWN, OccupancyMap
 from .distance import lookup_distance, manhattan_distance_map, sample_at
 
 __all__ = [
@@ -30,6 +30,10 @@ __all__ = [
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
+#: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
+_BAND_ROWS = 512
+#: Manhattan balls of up to this many cells are cleared cell by cell (radius 3: 25 cells).
+_SCATTER_BALL = 25
 
 
 def cell_points(mask: ArrayLike) -> NDArray[np.float64]:
@@ -165,21 +169,32 @@ class ReferenceIndex:
         cached = self._chance.get(threshold)
         if cached is not None:
             return cached
-        known = self.known
-        n_known = int(np.count_nonzero(known))
-        if n_known == 0:
-            value = 1.0
-        else:
-            near = (self.occupied_distance <= threshold) & known
-            value = float(np.count_nonzero(near)) / n_known
+        n_known, n_near = _known_and_near(self.reference.states, self.occupied_distance, threshold)
+        value = 1.0 if n_known == 0 else float(n_near) / n_known
         self._chance[threshold] = value
         return value
+
+
+def _known_and_near(
+    states: NDArray[np.int8], distance: NDArray[np.float32], threshold: float
+) -> tuple[int, int]:
+    """The known cells of ``states`` and those of them within ``threshold`` of ``distance``,
+    counted in bands of rows (no temporary of the grid's size)."""
+    n_known = n_near = 0
+    for r in range(0, states.shape[0], _BAND_ROWS):
+        known = states[r : r + _BAND_ROWS] != UNKNOWN
+        n_known += int(np.count_nonzero(known))
+        known &= distance[r : r + _BAND_ROWS] <= threshold
+        n_near += int(np.count_nonzero(known))
+    return n_known, n_near
 
 
 def unmatched_reference(
     reference_occupied: NDArray[np.bool_],
     matched_points: ArrayLike,
     threshold: float,
+    *,
+    in_place: bool = False,
 ) -> NDArray[np.bool_]:
     """Remove from ``reference_occupied`` the cells explained by a matched partition.
 
@@ -191,29 +206,76 @@ def unmatched_reference(
         The partition's cells, already moved into the reference frame.
     threshold : float
         Reference cells within this Manhattan distance of a matched point are removed.
+    in_place : bool
+        Remove them from ``reference_occupied`` itself (C-contiguous) instead of a copy.
 
     Returns
     -------
     ndarray of bool
-        A new mask; the input is not modified.
+        A new mask (``reference_occupied`` itself if ``in_place``).
+
+    Notes
+    -----
+    The cost follows the matched cells: for a small radius each cell of the Manhattan ball
+    around the hits is cleared directly (one scatter a cell of the ball); a larger radius
+    dilates the hits' box in bands of rows.
     """
     p = np.asarray(matched_points, dtype=float).reshape(-1, 2)
     h, w = reference_occupied.shape
     cols = np.rint(p[:, 0]).astype(np.intp)
     rows = np.rint(p[:, 1]).astype(np.intp)
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    out = reference_occupied.copy()
-    if not inside.any():
+    if in_place and not reference_occupied.flags.c_contiguous:
+        raise ValueError("in_place needs a C-contiguous mask")
+    out = reference_occupied if in_place else reference_occupied.copy()
+    radius = int(np.floor(threshold))
+    if not inside.any() or radius < 0:
         return out
     rows, cols = rows[inside], cols[inside]
-    # only the box of the hits, widened by the radius, can change
-    radius = max(int(np.floor(threshold)), 0)
+    if 2 * radius * (radius + 1) + 1 <= _SCATTER_BALL:
+        _clear_ball(out, rows, cols, radius)
+    else:
+        _clear_dilated(out, rows, cols, threshold)
+    return out
+
+
+def _clear_ball(
+    out: NDArray[np.bool_], rows: NDArray[np.intp], cols: NDArray[np.intp], radius: int
+) -> None:
+    """Clear the cells of ``out`` within Manhattan ``radius`` of the cells ``(rows, cols)``
+    (inside the grid), one offset of the ball at a time."""
+    h, w = out.shape
+    flat = out.reshape(-1)  # a view: ``out`` is C-contiguous
+    base = rows * w + cols
+    for dr in range(-radius, radius + 1):
+        r = rows + dr
+        row_ok = (r >= 0) & (r < h)
+        span = radius - abs(dr)
+        for dc in range(-span, span + 1):
+            c = cols + dc
+            ok = row_ok & (c >= 0) & (c < w)
+            flat[base[ok] + (dr * w + dc)] = False
+
+
+def _clear_dilated(
+    out: NDArray[np.bool_], rows: NDArray[np.intp], cols: NDArray[np.intp], threshold: float
+) -> None:
+    """:func:`_clear_ball` for a large radius: the hits' box, widened by the radius, dilated
+    in bands of rows (each with the hits within the radius above and below it)."""
+    h, w = out.shape
+    radius = int(np.floor(threshold))
     r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, h)
     c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, w)
-    hit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    hit[rows - r0, cols - c0] = True
-    out[r0:r1, c0:c1] &= ~within_manhattan(hit, threshold)
-    return out
+    order = np.argsort(rows, kind="stable")
+    rows, cols = rows[order], cols[order]
+    for b0 in range(r0, r1, _BAND_ROWS):
+        b1 = min(b0 + _BAND_ROWS, r1)
+        lo, hi = max(b0 - radius, r0), min(b1 + radius, r1)
+        i, j = np.searchsorted(rows, (lo, hi))
+        hit = np.zeros((hi - lo, c1 - c0), dtype=bool)
+        hit[rows[i:j] - lo, cols[i:j] - c0] = True
+        near = within_manhattan(hit, threshold)[b0 - lo : b1 - lo]
+        out[b0:b1, c0:c1] &= ~near
 
 
 def within_manhattan(mask: NDArray[np.bool_], threshold: float) -> NDArray[np.bool_]:

@@ -2,22 +2,95 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import MapError
-from ..grid import OccupancyMap
-from .distance import manhattan_distance_map
+from ..grid import FREE, OCCUPIED, OccupancyMap
 
 __all__ = ["picture_distance"]
 
+#: Rows of the grid a band of the sums covers (no temporary of the grid's size).
+_BAND_ROWS = 512
+#: Largest exact distance of one saturated one-byte Manhattan pass (255 means "farther").
+_LEVEL = 254
 
-def _mean_distance(of: np.ndarray, to: np.ndarray, cap: float) -> float:
-    """Mean Manhattan distance from each ``of`` cell to the nearest ``to`` cell."""
-    count = int(np.count_nonzero(of))
+
+def _count(states: NDArray[np.int8], kind: int) -> int:
+    """Cells of ``states`` equal to ``kind``, counted in bands of rows."""
+    return sum(
+        int(np.count_nonzero(states[r : r + _BAND_ROWS] == kind))
+        for r in range(0, states.shape[0], _BAND_ROWS)
+    )
+
+
+def _level_pass(seeds_not: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """Manhattan distance to the zero cells of ``seeds_not``, saturated at 255 (one byte a
+    cell: OpenCV's L1 transform writes bytes directly, with no wider temporary)."""
+    return np.asarray(
+        cv2.distanceTransform(seeds_not, cv2.DIST_L1, 3, dstType=cv2.CV_8U), dtype=np.uint8
+    )
+
+
+def _distance_sum(
+    of_states: NDArray[np.int8], of_kind: int, to_states: NDArray[np.int8], to_kind: int
+) -> int:
+    """Sum over the ``of_kind`` cells of ``of_states`` of the exact Manhattan distance to the
+    nearest ``to_kind`` cell of ``to_states`` (there must be one).
+
+    By saturated one-byte passes: the first gives every distance under 255. A cell at 255
+    or more is exactly 254 farther than the nearest cell at exactly 254 (its shortest lattice
+    path to the nearest ``to_kind`` cell crosses that level, and no cell of the level is
+    nearer the target than 254), so the next pass, seeded with the cells at 254, gives the
+    distances under 254 + 255, and so on until every ``of_kind`` cell has its distance. Maps
+    of one place need one pass; a pass holds two bytes a cell, and a mask of the cells still
+    without a distance is kept only when there are some.
+    """
+    rows, bands = of_states.shape[0], range(0, of_states.shape[0], _BAND_ROWS)
+    level = _level_pass(np.not_equal(to_states, to_kind).view(np.uint8))
+    total, offset = 0, 0
+    pending: NDArray[np.bool_] | None = None  # the of_kind cells still without a distance
+    while True:
+        left = 0
+        for r in bands:
+            band = slice(r, min(r + _BAND_ROWS, rows))
+            cells = of_states[band] == of_kind if pending is None else pending[band]
+            values = level[band][cells]
+            near = values < 255
+            n_near = int(np.count_nonzero(near))
+            total += int(values[near].sum(dtype=np.int64)) + offset * n_near
+            left += values.size - n_near
+        if not left:
+            return total
+        if pending is None:
+            pending = np.empty(of_states.shape, dtype=bool)
+            for r in bands:
+                band = slice(r, min(r + _BAND_ROWS, rows))
+                np.logical_and(of_states[band] == of_kind, level[band] == 255, out=pending[band])
+        else:
+            for r in bands:
+                band = slice(r, min(r + _BAND_ROWS, rows))
+                pending[band] &= level[band] == 255
+        offset += _LEVEL
+        np.not_equal(level, _LEVEL, out=level.view(np.bool_))  # zero at the seeds: the 254s
+        level = _level_pass(level)
+
+
+def _mean_distance(
+    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, cap: float
+) -> float:
+    """Mean Manhattan distance from each ``kind`` cell of ``of_states`` to the nearest
+    ``kind`` cell of ``to_states`` (``cap`` a cell when ``to_states`` has none).
+
+    Distances are whole numbers, so their sum is exact in integers (and equal to the float64
+    sum of the float32 distances, which is exact below 2**53)."""
+    count = _count(of_states, kind)
     if count == 0:
         return 0.0
-    d = manhattan_distance_map(to)[of]
-    return float(np.minimum(d, cap).astype(np.float64).sum() / count)
+    if _count(to_states, kind) == 0:
+        return float(np.float64(cap) * count) / count
+    return float(_distance_sum(of_states, kind, to_states, kind)) / count
 
 
 def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
@@ -31,7 +104,8 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     i.e. for each kind of cell, the average Manhattan distance from every cell of that kind
     in one map to the nearest cell of the same kind in the other map, both ways. Unknown cells
     take no part. 0 means identical occupied and free sets; the value grows with noise,
-    shifts and rotations. Distance maps make it linear in the number of cells.
+    shifts and rotations. Distance maps make it linear in the number of cells; they are
+    one byte a cell (saturated passes, exact), and every sum is taken in bands of rows.
 
     Parameters
     ----------
@@ -67,6 +141,8 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
         raise MapError(f"picture distance needs maps of one shape, got {a.shape} and {b.shape}")
     cap = float(sum(a.shape))
     total = 0.0
-    for ka, kb in ((a.occupied, b.occupied), (a.free, b.free)):
-        total += _mean_distance(ka, kb, cap) + _mean_distance(kb, ka, cap)
+    for kind in (OCCUPIED, FREE):
+        total += _mean_distance(a.states, b.states, kind, cap) + _mean_distance(
+            b.states, a.states, kind, cap
+        )
     return total

@@ -115,12 +115,11 @@ from .._memory import small_pages
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
-from ..masking import ReferenceIndex, cell_points, unmatched_reference, within_manhattan
-from ..registration._spectral import bounding_box
+from ..masking import ReferenceIndex, cell_points, unmatched_reference
 from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
-from .choice import mostly_claimed, prefer_unexplained
+from .choice import mostly_on_claimed, prefer_unexplained
 from .evidence import MAP_RATIO, contradiction, wall_contradiction
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
@@ -350,23 +349,6 @@ def _compute(
     )
 
 
-def _near_claimed(
-    occupied: NDArray[np.bool_], available: NDArray[np.bool_], threshold: float
-) -> tuple[NDArray[np.bool_], tuple[int, int]]:
-    """The reference cells within ``threshold`` of walls earlier partitions matched (occupied
-    and no longer ``available``), as a box of the grid and its first cell ``(col0, row0)``
-    (no such cell lies outside it)."""
-    claimed = occupied & ~available
-    box = bounding_box(claimed)
-    if box is None:
-        return np.zeros((0, 0), dtype=bool), (0, 0)
-    radius = max(int(math.floor(threshold)), 0)
-    h, w = claimed.shape
-    r0, r1 = max(box[0] - radius, 0), min(box[1] + radius, h)
-    c0, c1 = max(box[2] - radius, 0), min(box[3] + radius, w)
-    return within_manhattan(claimed[r0:r1, c0:c1], threshold), (c0, r0)
-
-
 def _wider(registrar: Registrar) -> Registrar:
     """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
     poses), or ``registrar`` itself for a method without one."""
@@ -514,7 +496,7 @@ def _recurse(
     uses_free, drop_isolated = settings.uses_free, settings.drop_isolated
     n_total = points.shape[0]
     remaining = np.ones(n_total, dtype=bool)
-    reference_occupied = index.occupied  # never modified: each step makes a new mask
+    reference_occupied = index.occupied  # never modified: the first step makes a new mask
     p0 = index.chance_agreement(threshold)
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     found: list[Found] = []
@@ -545,7 +527,6 @@ def _recurse(
         # or the best (or the best of R') explains less than 40 % of what is left, it asks
         # once more with a wider search (``thorough``: more peaks, same prepared references)
         # for the reference(s) whose best fell short, and keeps the better answer.
-        near_claimed = None  # cells near the walls earlier partitions matched, if asked
         rest = None
         pool: list[Candidate] = list(carried)
         pool_rest: list[Candidate] = list(carried_rest)
@@ -569,10 +550,9 @@ def _recurse(
             rest_ok = True
             use_rest = rest is not None
             if not use_rest and best_whole is not None and found:
-                if near_claimed is None:
-                    near_claimed = _near_claimed(index.occupied, reference_occupied, threshold)
-                claimed, offset = near_claimed
-                use_rest = mostly_claimed(best_whole, left_points, claimed, threshold, offset)
+                use_rest = mostly_on_claimed(
+                    best_whole, left_points, index.occupied, reference_occupied, threshold
+                )
             if best_whole is not None and use_rest:
                 if rest is None:
                     rest = prepared_reference(
@@ -620,7 +600,19 @@ def _recurse(
         # Merge into an earlier partition whose transform explains this set as well.
         target = merge_target(found, points[members], index, merge_threshold)
         remaining[members] = False
-        reference_occupied = unmatched_reference(reference_occupied, moved, threshold)
+        # the walls still available to the next step (none: this was the last step)
+        last = (
+            np.count_nonzero(remaining) < min_cells
+            or len(found) + (target is None) >= max_partitions
+            or steps >= 2 * max_partitions
+        )
+        if not last:  # a new mask the first time (the index's is kept), then in place
+            reference_occupied = unmatched_reference(
+                reference_occupied,
+                moved,
+                threshold,
+                in_place=reference_occupied is not index.occupied,
+            )
         elapsed = time.perf_counter() - t0
         excess = (k - chance) / k
         if target is not None:
@@ -630,6 +622,6 @@ def _recurse(
             )
         else:
             found.append(Found(transform, members, float(excess), elapsed))
-        if not reference_occupied.any():
+        if last or not reference_occupied.any():
             break
     return found
