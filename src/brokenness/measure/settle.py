@@ -304,12 +304,16 @@ def _candidates(
         share = agree[:, cells].mean(axis=1)
         j = int(np.argmax(share))  # the partition of the tile: a tile mostly holds one part
         if SUPPORT_SHARE <= share[j] < EXPLAINED:
-            refit = transforms[j]
-            for _ in range(REFITS):
-                refit = _refit(refit, points[cells], index, settings)
-            if refit is not transforms[j]:
-                seeds.append(j)
-                candidates.append(refit)
+            starts = [transforms[j]]
+            shifted = _shift_search(transforms[j], points[cells], index, settings.threshold)
+            if shifted is not None:
+                starts.append(shifted)
+            for refit in starts:
+                for _ in range(REFITS):
+                    refit = _refit(refit, points[cells], index, settings)
+                if refit is not transforms[j]:
+                    seeds.append(j)
+                    candidates.append(refit)
     return seeds, candidates
 
 
@@ -347,8 +351,9 @@ def _shift_search(
 
     The refinement's trimmed ICP only pulls on cells within the loose threshold, so it cannot
     reach a part shifted farther against a partition (a pure-shift bump of half a metre is
-    10 cells at 5 cm). Every shift is counted on at most :data:`SHIFT_SAMPLE` of the cells
-    (an even stride of them), by lookups in the reference's agreement mask around them.
+    10 cells at 5 cm). Every other shift is counted first, then the eight around the best
+    of them, on at most :data:`SHIFT_SAMPLE` of the cells (an even stride of them), by
+    lookups in the reference's agreement mask around them.
     """
     picked = cells[:: max(1, -(-cells.shape[0] // SHIFT_SAMPLE))]
     moved = np.rint(transform.apply(picked)).astype(np.int64)
@@ -365,16 +370,29 @@ def _shift_search(
     )
     flat = window.ravel()
     at = (moved[:, 1] - y0) * width + (moved[:, 0] - x0)
-    steps = np.arange(-MAX_SHIFT, MAX_SHIFT + 1)
-    offsets = (steps[:, None] * width + steps[None, :]).ravel()  # (dy, dx), row-major
-    counts = np.zeros(offsets.size, dtype=np.int64)
-    for start in range(0, at.size, _SHIFT_CHUNK):
-        counts += flat[at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]].sum(axis=0)
-    best = int(np.argmax(counts))  # the first of ties
-    if counts[best] <= counts[offsets.size // 2]:
+
+    def counted(shifts: NDArray[np.int64]) -> NDArray[np.int64]:
+        offsets = shifts[:, 0] * width + shifts[:, 1]
+        counts = np.zeros(offsets.size, dtype=np.int64)
+        for start in range(0, at.size, _SHIFT_CHUNK):
+            counts += flat[at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]].sum(axis=0)
+        return counts
+
+    # every other shift first (a cell agrees within ``threshold``, so a part's peak is
+    # several shifts wide), then the shifts around the best of them
+    steps = np.arange(-MAX_SHIFT, MAX_SHIFT + 1, 2)
+    coarse = np.stack(np.meshgrid(steps, steps, indexing="ij"), axis=-1).reshape(-1, 2)
+    around = coarse[int(np.argmax(counted(coarse)))]  # (dy, dx); the first of ties
+    near = np.arange(-1, 2)
+    fine = np.stack(np.meshgrid(near, near, indexing="ij"), axis=-1).reshape(-1, 2) + around
+    fine = fine[(np.abs(fine) <= MAX_SHIFT).all(axis=1)]
+    fine = np.vstack([fine, np.zeros((1, 2), np.int64)])  # and no shift, last
+    counts = counted(fine)
+    best = int(np.argmax(counts))
+    if counts[best] <= counts[-1]:
         return None
-    dy, dx = divmod(best, steps.size)
-    return RigidTransform(0.0, float(dx - MAX_SHIFT), float(dy - MAX_SHIFT)).compose(transform)
+    dy, dx = (int(v) for v in fine[best])
+    return RigidTransform(0.0, float(dx), float(dy)).compose(transform)
 
 
 def _refit(
