@@ -305,7 +305,9 @@ def _candidates(
         j = int(np.argmax(share))  # the partition of the tile: a tile mostly holds one part
         if SUPPORT_SHARE <= share[j] < EXPLAINED:
             starts = [transforms[j]]
-            shifted = _shift_search(transforms[j], points[cells], index, settings.threshold)
+            shifted = _shift_search(
+                transforms[j], points[cells], index, settings.threshold, settings.loose
+            )
             if shifted is not None:
                 starts.append(shifted)
             for refit in starts:
@@ -331,7 +333,7 @@ def _shifted_copies(
     if np.count_nonzero(left) < settings.min_cells:
         return seeds, candidates
     for j, t in enumerate(transforms):
-        shifted = _shift_search(t, points[left], index, settings.threshold)
+        shifted = _shift_search(t, points[left], index, settings.threshold, settings.loose)
         if shifted is None:
             continue
         cells = points[left | agree[j]]
@@ -344,10 +346,15 @@ def _shifted_copies(
 
 
 def _shift_search(
-    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, threshold: float
+    transform: RigidTransform,
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    reach: float,
 ) -> RigidTransform | None:
     """``transform`` followed by the whole-cell shift, within :data:`MAX_SHIFT` cells, that
-    makes the most ``cells`` agree, if it makes more agree than no shift (``None`` if not).
+    makes the most ``cells`` agree, if it makes more agree than no shift and is longer than
+    ``reach`` (the refinement's: it finds shorter ones itself); ``None`` if not.
 
     The refinement's trimmed ICP only pulls on cells within the loose threshold, so it cannot
     reach a part shifted farther against a partition (a pure-shift bump of half a metre is
@@ -389,9 +396,9 @@ def _shift_search(
     fine = np.vstack([fine, np.zeros((1, 2), np.int64)])  # and no shift, last
     counts = counted(fine)
     best = int(np.argmax(counts))
-    if counts[best] <= counts[-1]:
-        return None
     dy, dx = (int(v) for v in fine[best])
+    if counts[best] <= counts[-1] or np.hypot(dx, dy) <= reach:
+        return None  # no better shift, or one the refinement reaches from here
     return RigidTransform(0.0, float(dx), float(dy)).compose(transform)
 
 
