@@ -215,7 +215,10 @@ def _best_split(
             continue
         open_cells = int(np.count_nonzero(~others))
         names = np.concatenate([[-1], mine])
-        halves = np.vstack([agree[j][None], offered[mine]])[:, ~others]  # (1 + M, open)
+        open_at = np.flatnonzero(~others)
+        halves = np.vstack([agree[j][None], offered[mine]])[:, open_at]  # (1 + M, open)
+        some = halves.any(axis=0)  # open cells some half explains (the others count nowhere)
+        halves, open_at = halves[:, some], open_at[some]
         # both[x, y]: the open cells halves x and y both explain
         both = np.stack([np.count_nonzero(halves & row, axis=1) for row in halves])
         counts = np.diagonal(both)
@@ -232,8 +235,8 @@ def _best_split(
             x, y = int(xs[q]), int(ys[q])
             tx = transforms[j] if x == 0 else candidates[int(names[x])]
             ty = candidates[int(names[y])]
-            only_x = np.flatnonzero(~others)[halves[x] & ~halves[y]]
-            only_y = np.flatnonzero(~others)[halves[y] & ~halves[x]]
+            only_x = open_at[halves[x] & ~halves[y]]
+            only_y = open_at[halves[y] & ~halves[x]]
             if _explains(tx, walls[only_y], index, settings) or _explains(
                 ty, walls[only_x], index, settings
             ):
