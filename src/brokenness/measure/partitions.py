@@ -308,8 +308,13 @@ def _joined(
     keep = (found[i], found[j])[kept]
     if max(agreeing) < JOIN_SHARE * union.size:
         return None
-    # the transform given up must have no evidence of its own (the test of drop_redundant)
-    if np.count_nonzero(agree[1 - kept] & ~agree[kept]) >= min_cells:
+    # at one rotation, the transform given up must have no evidence of its own (the test of
+    # drop_redundant: the parts of a pure-shift bump agree along the shift under either)
+    given_up, keeper = (found[i], found[j])[1 - kept], keep
+    if (
+        abs(_turn_deg(given_up.transform, keeper.transform)) <= SAME_ROTATION_DEG
+        and np.count_nonzero(agree[1 - kept] & ~agree[kept]) >= min_cells
+    ):
         return None
     return i, Found(keep.transform, union, keep.confidence, found[i].seconds + found[j].seconds)
 
