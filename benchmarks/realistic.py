@@ -518,7 +518,7 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         "occupied_cells": truth["occupied_cells"],
         "smallest_share": min(p["share"] for p in truth["partitions"]),
     }
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         res = compute_brokenness(m, r, method=method, seed=seed)
     except Exception as exc:
@@ -528,6 +528,7 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
     found = [p.transform for p in res.partitions]
     row.update(
         seconds=seconds,
+        cpu_seconds=time.process_time() - c0,  # this worker's CPU time, all its threads
         measured=bool(res.measured),
         degree=res.degree,
         reason=res.reason,
@@ -707,6 +708,14 @@ def main(argv: list[str] | None = None) -> int:
         f"\ncompute: {compute_wall:.0f} s wall on {workers} worker(s), "
         f"{sum(r.get('seconds', 0.0) for r in rows):.0f} s summed"
     )
+    timed = [r for r in rows if "cpu_seconds" in r]
+    if timed:
+        print(
+            f"per map: median {np.median([r['seconds'] for r in timed]):.1f} s wall, "
+            f"{np.median([r['cpu_seconds'] for r in timed]):.1f} s CPU "
+            f"(max {max(r['seconds'] for r in timed):.1f} s wall, "
+            f"{max(r['cpu_seconds'] for r in timed):.1f} s CPU)"
+        )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(
         json.dumps(
