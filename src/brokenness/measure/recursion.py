@@ -138,6 +138,7 @@ from .result import BrokennessResult, Partition
 from .settle import settle
 from .views import (
     candidates_of,
+    exhausted,
     moving_remainder,
     occupied_count,
     prepared_reference,
@@ -384,7 +385,8 @@ def _region_candidates(
     settings: Settings,
 ) -> list[Candidate]:
     """Hypotheses from regions of the remainder: the tiles of 2 x 2 and 3 x 3 grids over its
-    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped)."""
+    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped, and
+    the tiles left once ``registrar`` has spent its budget)."""
     r, c = rows[remaining], cols[remaining]
     r0, r1, c0, c1 = int(r.min()), int(r.max()) + 1, int(c.min()), int(c.max()) + 1
     out: list[Candidate] = []
@@ -398,6 +400,8 @@ def _region_candidates(
                 cells = remaining & (tile_row == i) & (tile_col == j)
                 if np.count_nonzero(cells) < settings.min_cells:
                     continue
+                if exhausted(registrar):
+                    return out
                 states = moving_remainder(
                     working,
                     rows,
@@ -557,8 +561,8 @@ def _recurse(
         fresh: list[Candidate] = []
         fresh_rest: list[Candidate] = []
         for attempt in (registrar, thorough):
-            if attempt is None:
-                continue
+            if attempt is None or (attempt is thorough and exhausted(attempt)):
+                continue  # no wider search, or its budget is spent (the random walk's)
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             if widen_whole:
                 fresh = candidates_of(attempt, whole, moving_states, limit)
@@ -593,6 +597,7 @@ def _recurse(
                 break
         if (
             thorough is not None
+            and not exhausted(thorough)
             and (best is None or np.count_nonzero(best[1]) < needed)
             and n >= max(4 * min_cells, REGIONS_FROM * n_total)
         ):

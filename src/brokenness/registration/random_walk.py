@@ -74,6 +74,22 @@ numerical settings of the original implementation were not available to us.
   lockstep steps of all walkers: deterministic) and ``time_budget`` (seconds per
   registration, default none). A time budget makes the result depend on the machine and
   its load; only the iteration budget is deterministic, so it is the default.
+- The budget of the wider searches (ours): :func:`brokenness.compute_brokenness` falls back
+  on a wider walk (:meth:`RandomWalkRegistrar.wider`, twice the start poses) when a step
+  falls short, on wider walks of 13 regions of a remainder that no part dominates, and on
+  wider walks of the suspect cells in each round of the recovery. On a map of the reference's
+  place these run a few times; on a map of another place *every* step falls short, so they
+  ran in every step (up to 15 wider walks, about 30 plain ones, a step), and one such
+  control took up to 627 s. All the walks of one wider registrar -- the measure makes one per
+  call -- therefore share ``wider_budget`` = 8 plain walks' worth of evaluations of Delta
+  (:attr:`WalkOptions.nominal_evaluations`: the start poses plus ``max_iterations + 1``
+  evaluations of every walker); the walk that spends it stops there (a deterministic count,
+  as the iteration budget), and the measure asks a spent registrar for no more searches (its
+  :attr:`~RandomWalkRegistrar.exhausted`). The plain walks of the recursion itself, one per
+  step and reference, are not charged: Algorithm 1 bounds them (``max_partitions``). The
+  value 8 is about the cost of the wider searches of a map of degree 5 of the realistic
+  benchmark, and half a step's fallback on a map of another place (see the README, issue
+  13, for what it changed).
 - Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
   cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
   part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
@@ -355,6 +371,14 @@ class WalkOptions:
         Wall-clock seconds per registration after which the walk stops and returns what it
         has (default none). Makes results machine-dependent: only the iteration budget is
         deterministic.
+    wider_budget : float, optional
+        Evaluations of Delta that all the walks of a :meth:`RandomWalkRegistrar.wider`
+        registrar may spend together (the wider searches of one ``compute_brokenness``
+        call), in units of one walk of the registrar it widens (its nominal evaluations:
+        the start poses, plus ``max_iterations`` steps of every walker); default 8. A walk
+        stops when the budget is spent, and the measure asks a spent registrar for no more
+        wider searches. ``None``: no bound (the previous release). See the module
+        docstring, "Budgets".
 
     Raises
     ------
@@ -382,6 +406,7 @@ class WalkOptions:
     dedupe_cells: float = 8.0
     explain_cells: float = 2.0
     time_budget: float | None = None
+    wider_budget: float | None = 8.0
 
     def __post_init__(self) -> None:
         _check_int("rotations", self.rotations)
@@ -408,6 +433,17 @@ class WalkOptions:
         _check_float("explain_cells", self.explain_cells, allow_zero=True)
         if self.time_budget is not None:
             _check_float("time_budget", self.time_budget)
+        if self.wider_budget is not None:
+            _check_float("wider_budget", self.wider_budget)
+
+    @property
+    def nominal_evaluations(self) -> int:
+        """Evaluations of Delta of one full walk with these settings: the coarse grid of start
+        poses (``rotations x (2 + start_grid**2)``), then ``max_iterations + 1`` evaluations of
+        every walker (``rotations x walkers_per_angle + spectral_starts``) -- the unit of
+        ``wider_budget``."""
+        walkers = self.rotations * self.walkers_per_angle + self.spectral_starts
+        return self.rotations * (2 + self.start_grid**2) + (self.max_iterations + 1) * walkers
 
 
 _OPTION_NAMES = frozenset(f.name for f in fields(WalkOptions))
@@ -435,6 +471,9 @@ class WalkProgress:
         Wall-clock time of this registration so far.
     done : bool
         True for the last report of a registration.
+    budget_left : int, optional
+        Evaluations left in the shared budget of a :meth:`RandomWalkRegistrar.wider`
+        registrar once this walk's are counted (``None`` for a registrar without one).
     """
 
     call: int
@@ -447,6 +486,7 @@ class WalkProgress:
     evaluations: int
     seconds: float
     done: bool
+    budget_left: int | None = None
 
 
 ProgressCallback = Callable[[WalkProgress], None]
@@ -455,6 +495,15 @@ ProgressCallback = Callable[[WalkProgress], None]
 # --------------------------------------------------------------------------------------------
 # The registrar
 # --------------------------------------------------------------------------------------------
+@dataclass(eq=False)
+class _Ledger:
+    """Evaluations of Delta left to the walks of one :meth:`RandomWalkRegistrar.wider`
+    registrar (held by that registrar alone; it may end below 0 by the start poses of the walk
+    that spent it)."""
+
+    left: int
+
+
 @dataclass(frozen=True, eq=False)
 class _PreparedReference:
     """What :meth:`RandomWalkRegistrar.prepare_reference` computes once."""
@@ -531,6 +580,7 @@ class RandomWalkRegistrar:
         self.progress = progress
         self.progress_every = _check_int("progress_every", progress_every)
         self._calls = 0
+        self._ledger: _Ledger | None = None  # set by wider(): the shared budget of its walks
 
     def __repr__(self) -> str:
         return f"RandomWalkRegistrar(seed={self.seed}, options={self.options!r})"
@@ -615,17 +665,33 @@ class RandomWalkRegistrar:
         )
         return _to_candidates(walk, prepared_reference, full, self.options, max_candidates)
 
+    @property
+    def budget_left(self) -> int | None:
+        """Evaluations of Delta left in this registrar's shared budget (``None``: none,
+        only a :meth:`wider` registrar has one)."""
+        return None if self._ledger is None else self._ledger.left
+
+    @property
+    def exhausted(self) -> bool:
+        """Whether the shared budget of this (:meth:`wider`) registrar is spent: the measure
+        then asks it for no more searches (a plain registrar is never exhausted)."""
+        return self._ledger is not None and self._ledger.left <= 0
+
     def wider(self) -> RandomWalkRegistrar:
         """The same walk with twice the start poses: ``walkers_per_angle`` and
         ``spectral_starts`` doubled (0 stays 0: the pure stochastic search stays pure),
-        same seed, budgets and progress callback.
+        same seed, per-walk budgets and progress callback, and a budget of its own for all
+        its walks together: ``wider_budget`` times :attr:`WalkOptions.nominal_evaluations`
+        of *this* registrar's walk (none if ``wider_budget`` is ``None``).
 
         The wider search of :func:`brokenness.compute_brokenness` (a step that falls short,
         regions of a heavily broken remainder, the recovery of lost partitions), as iFMI's
-        is iFMI with more peaks. It takes the same prepared reference as this registrar.
+        is iFMI with more peaks. It takes the same prepared reference as this registrar. The
+        measure makes one per call, so the budget bounds the wider searches of that call;
+        once it is spent (:attr:`exhausted`) the measure skips them.
         """
         opt = self.options
-        return RandomWalkRegistrar(
+        wide = RandomWalkRegistrar(
             seed=self.seed,
             options=replace(
                 opt,
@@ -635,6 +701,9 @@ class RandomWalkRegistrar:
             progress=self.progress,
             progress_every=self.progress_every,
         )
+        if opt.wider_budget is not None:
+            wide._ledger = _Ledger(math.ceil(opt.wider_budget * opt.nominal_evaluations))
+        return wide
 
     def register(
         self, reference_states: NDArray[np.int8], moving_states: NDArray[np.int8]
@@ -670,6 +739,7 @@ class _WalkResult:
     steps: int
     restarts: int
     stopped_by_time: bool
+    stopped_by_budget: bool
 
 
 def _transform_arrays(
@@ -740,7 +810,8 @@ def _walk(
     n_recent = np.zeros(n_walkers, dtype=np.int64)
     active = np.ones(n_walkers, dtype=bool)
     steps = 0
-    by_time = False
+    by_time = by_budget = False
+    ledger = reg._ledger
 
     def report(done: bool) -> None:
         if reg.progress is None:
@@ -758,6 +829,7 @@ def _walk(
                 evaluations=evaluations,
                 seconds=time.perf_counter() - started,
                 done=done,
+                budget_left=None if ledger is None else ledger.left - evaluations,
             )
         )
 
@@ -765,6 +837,9 @@ def _walk(
     while active.any() and steps < opt.max_iterations:
         if opt.time_budget is not None and time.perf_counter() - started > opt.time_budget:
             by_time = True
+            break
+        if ledger is not None and evaluations >= ledger.left:  # the shared budget is spent
+            by_budget = True
             break
         steps += 1
         # Draws for every walker, active or not: the stream does not depend on who is done.
@@ -818,6 +893,8 @@ def _walk(
         if steps % reg.progress_every == 0:
             report(False)
     report(True)
+    if ledger is not None:
+        ledger.left -= evaluations
     return _WalkResult(
         states=best_state,
         delta=best,
@@ -827,6 +904,7 @@ def _walk(
         steps=steps,
         restarts=int(restarts.sum()),
         stopped_by_time=by_time,
+        stopped_by_budget=by_budget,
     )
 
 
