@@ -73,12 +73,20 @@ def run_pair(
         "map_resolution": m.resolution,
         "reference_resolution": r.resolution,
     }
+    walks: list[Any] = []  # the random walk's last report of each walk
+    extra: dict[str, Any] = {}
+    if method == "random-walk":
+        extra["registration_options"] = {"progress": lambda p: walks.append(p) if p.done else None}
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        res = compute_brokenness(m, r, method=method, seed=seed)
+        res = compute_brokenness(m, r, method=method, seed=seed, **extra)
     except Exception as exc:  # a crash is recorded, not fatal to the run
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
+    if method == "random-walk":
+        from realistic import walk_usage
+
+        row["walks"] = walk_usage(walks)
     row.update(
         measured=bool(res.measured),
         degree=res.degree,

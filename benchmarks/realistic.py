@@ -518,12 +518,18 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         "occupied_cells": truth["occupied_cells"],
         "smallest_share": min(p["share"] for p in truth["partitions"]),
     }
+    walks: list[Any] = []  # the random walk's last report of each walk
+    extra: dict[str, Any] = {}
+    if method == "random-walk":
+        extra["registration_options"] = {"progress": lambda p: walks.append(p) if p.done else None}
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        res = compute_brokenness(m, r, method=method, seed=seed)
+        res = compute_brokenness(m, r, method=method, seed=seed, **extra)
     except Exception as exc:
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
+    if method == "random-walk":
+        row["walks"] = walk_usage(walks)
     seconds = time.perf_counter() - t0
     found = [p.transform for p in res.partitions]
     row.update(
@@ -543,6 +549,25 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         ],
     )
     return row
+
+
+def walk_usage(walks: list[Any]) -> dict[str, Any]:
+    """The random walk's work in one call, from its last progress report of each walk: walks
+    and evaluations of the plain and the wider registrar (the one with a shared budget) in
+    units of one plain walk (:attr:`WalkOptions.nominal_evaluations`), and whether the
+    budget was spent."""
+    from brokenness.registration.random_walk import WalkOptions
+
+    unit = WalkOptions().nominal_evaluations
+    plain = [p for p in walks if p.budget_left is None]
+    wider = [p for p in walks if p.budget_left is not None]
+    return {
+        "plain_walks": len(plain),
+        "plain_units": sum(p.evaluations for p in plain) / unit,
+        "wider_walks": len(wider),
+        "wider_units": sum(p.evaluations for p in wider) / unit,
+        "budget_spent": bool(wider) and wider[-1].budget_left <= 0,
+    }
 
 
 def _evaluate_job(folder: str, method: str = "ifmi", seed: int | None = None) -> dict[str, Any]:
