@@ -586,7 +586,7 @@ def _recurse(
                         uses_free,
                         settings.as_cells,
                     )
-                if widen_rest:
+                if widen_rest and not (attempt is thorough and exhausted(attempt)):
                     fresh_rest = candidates_of(attempt, rest, moving_states, limit)
                     pool_rest += fresh_rest
                     best_rest = best_hypothesis(pool_rest, left_points, index, threshold, refined)

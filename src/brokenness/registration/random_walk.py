@@ -74,22 +74,25 @@ numerical settings of the original implementation were not available to us.
   lockstep steps of all walkers: deterministic) and ``time_budget`` (seconds per
   registration, default none). A time budget makes the result depend on the machine and
   its load; only the iteration budget is deterministic, so it is the default.
-- The budget of the wider searches (ours): :func:`brokenness.compute_brokenness` falls back
-  on a wider walk (:meth:`RandomWalkRegistrar.wider`, twice the start poses) when a step
-  falls short, on wider walks of 13 regions of a remainder that no part dominates, and on
-  wider walks of the suspect cells in each round of the recovery. On a map of the reference's
-  place these run a few times; on a map of another place *every* step falls short, so they
-  ran in every step (up to 15 wider walks, about 30 plain ones, a step), and one such
-  control took up to 627 s. All the walks of one wider registrar -- the measure makes one per
-  call -- therefore share ``wider_budget`` = 8 plain walks' worth of evaluations of Delta
+- The budget of a search (ours): :func:`brokenness.compute_brokenness` falls back on a
+  wider walk (:meth:`RandomWalkRegistrar.wider`, twice the start poses) when a step falls
+  short, on wider walks of 13 regions of a remainder that no part dominates, and on wider
+  walks of the suspect cells in each round of the recovery. On a map of the reference's place
+  these run a few times; on a map of another place *every* step falls short, so they ran in
+  every step (up to 15 wider walks, about 30 plain walks' worth, a step), and one control of
+  the quick set took 627 s. So all the walks of one call -- the wider registrar's and the
+  plain one's, which the measure makes before any walk -- are counted in one budget,
+  ``search_budget`` = 24 plain walks' worth of evaluations of Delta
   (:attr:`WalkOptions.nominal_evaluations`: the start poses plus ``max_iterations + 1``
-  evaluations of every walker); the walk that spends it stops there (a deterministic count,
-  as the iteration budget), and the measure asks a spent registrar for no more searches (its
-  :attr:`~RandomWalkRegistrar.exhausted`). The plain walks of the recursion itself, one per
-  step and reference, are not charged: Algorithm 1 bounds them (``max_partitions``). The
-  value 8 is about the cost of the wider searches of a map of degree 5 of the realistic
-  benchmark, and half a step's fallback on a map of another place (see the README, issue
-  13, for what it changed).
+  evaluations of every walker). Only the wider walks are held to it: the one that spends it
+  stops there (a count, deterministic like the iteration budget) and the measure asks a spent
+  registrar for no more (its :attr:`~RandomWalkRegistrar.exhausted`); the plain walks of
+  Algorithm 1 itself (one per step and reference, bounded by ``max_partitions``) always run,
+  as iFMI's registrations do. A call's walks thus cost at most ``max(24, its plain walks)``
+  plain walks, plus one step. Why 24: the maps of degree 5 of the realistic benchmark that
+  needed the wider searches most (csail and orebro, degree 5) spent 18.4 and 20.8 (8.0 and
+  8.7 of it in plain walks); at 8 for the wider walks alone, csail's recovery was cut short
+  and it came out one partition short. See the README, issue 13, for what it changed.
 - Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
   cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
   part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
@@ -371,13 +374,14 @@ class WalkOptions:
         Wall-clock seconds per registration after which the walk stops and returns what it
         has (default none). Makes results machine-dependent: only the iteration budget is
         deterministic.
-    wider_budget : float, optional
-        Evaluations of Delta that all the walks of a :meth:`RandomWalkRegistrar.wider`
-        registrar may spend together (the wider searches of one ``compute_brokenness``
-        call), in units of one walk of the registrar it widens (its nominal evaluations:
-        the start poses, plus ``max_iterations`` steps of every walker); default 8. A walk
-        stops when the budget is spent, and the measure asks a spent registrar for no more
-        wider searches. ``None``: no bound (the previous release). See the module
+    search_budget : float, optional
+        Evaluations of Delta that all the walks of one search may spend together -- the
+        walks of a :meth:`RandomWalkRegistrar.wider` registrar and those of the registrar
+        it widens from then on (in ``compute_brokenness``: every walk of the call) -- in
+        units of one walk of the registrar it widens (:attr:`nominal_evaluations`); default
+        24. Only the wider walks are held to it: a wider walk stops when it is spent, and
+        the measure asks a spent registrar for no more wider searches; the plain walks are
+        counted but always run. ``None``: no bound (the previous release). See the module
         docstring, "Budgets".
 
     Raises
@@ -406,7 +410,7 @@ class WalkOptions:
     dedupe_cells: float = 8.0
     explain_cells: float = 2.0
     time_budget: float | None = None
-    wider_budget: float | None = 8.0
+    search_budget: float | None = 24.0
 
     def __post_init__(self) -> None:
         _check_int("rotations", self.rotations)
@@ -433,15 +437,15 @@ class WalkOptions:
         _check_float("explain_cells", self.explain_cells, allow_zero=True)
         if self.time_budget is not None:
             _check_float("time_budget", self.time_budget)
-        if self.wider_budget is not None:
-            _check_float("wider_budget", self.wider_budget)
+        if self.search_budget is not None:
+            _check_float("search_budget", self.search_budget)
 
     @property
     def nominal_evaluations(self) -> int:
         """Evaluations of Delta of one full walk with these settings: the coarse grid of start
         poses (``rotations x (2 + start_grid**2)``), then ``max_iterations + 1`` evaluations of
         every walker (``rotations x walkers_per_angle + spectral_starts``) -- the unit of
-        ``wider_budget``."""
+        ``search_budget``."""
         walkers = self.rotations * self.walkers_per_angle + self.spectral_starts
         return self.rotations * (2 + self.start_grid**2) + (self.max_iterations + 1) * walkers
 
@@ -472,8 +476,9 @@ class WalkProgress:
     done : bool
         True for the last report of a registration.
     budget_left : int, optional
-        Evaluations left in the shared budget of a :meth:`RandomWalkRegistrar.wider`
-        registrar once this walk's are counted (``None`` for a registrar without one).
+        For a walk of a :meth:`RandomWalkRegistrar.wider` registrar, the evaluations left in
+        the budget of its search once this walk's are counted (``None`` for the walks of
+        other registrars, which the budget does not stop).
     """
 
     call: int
@@ -497,9 +502,9 @@ ProgressCallback = Callable[[WalkProgress], None]
 # --------------------------------------------------------------------------------------------
 @dataclass(eq=False)
 class _Ledger:
-    """Evaluations of Delta left to the walks of one :meth:`RandomWalkRegistrar.wider`
-    registrar (held by that registrar alone; it may end below 0 by the start poses of the walk
-    that spent it)."""
+    """Evaluations of Delta left to the walks of one search: a :meth:`RandomWalkRegistrar.wider`
+    registrar, which the budget stops, and the registrar it widens, which the budget only
+    counts (it may end below 0 by the walk that spent it)."""
 
     left: int
 
@@ -580,7 +585,10 @@ class RandomWalkRegistrar:
         self.progress = progress
         self.progress_every = _check_int("progress_every", progress_every)
         self._calls = 0
-        self._ledger: _Ledger | None = None  # set by wider(): the shared budget of its walks
+        # set by wider(): the budget of the search, shared by the wider registrar (held to it)
+        # and the one it widens (counted only)
+        self._ledger: _Ledger | None = None
+        self._held = False  # whether the walks stop when the ledger is spent
 
     def __repr__(self) -> str:
         return f"RandomWalkRegistrar(seed={self.seed}, options={self.options!r})"
@@ -667,28 +675,31 @@ class RandomWalkRegistrar:
 
     @property
     def budget_left(self) -> int | None:
-        """Evaluations of Delta left in this registrar's shared budget (``None``: none,
-        only a :meth:`wider` registrar has one)."""
+        """Evaluations of Delta left in the budget of the search this registrar's walks are
+        counted in (``None`` until :meth:`wider` opens one, and for ``search_budget=None``)."""
         return None if self._ledger is None else self._ledger.left
 
     @property
     def exhausted(self) -> bool:
-        """Whether the shared budget of this (:meth:`wider`) registrar is spent: the measure
-        then asks it for no more searches (a plain registrar is never exhausted)."""
-        return self._ledger is not None and self._ledger.left <= 0
+        """Whether this :meth:`wider` registrar has spent its search's budget: the measure
+        then asks it for no more searches (the registrar it widens is never exhausted)."""
+        return self._held and self._ledger is not None and self._ledger.left <= 0
 
     def wider(self) -> RandomWalkRegistrar:
         """The same walk with twice the start poses: ``walkers_per_angle`` and
         ``spectral_starts`` doubled (0 stays 0: the pure stochastic search stays pure),
-        same seed, per-walk budgets and progress callback, and a budget of its own for all
-        its walks together: ``wider_budget`` times :attr:`WalkOptions.nominal_evaluations`
-        of *this* registrar's walk (none if ``wider_budget`` is ``None``).
+        same seed, per-walk budgets and progress callback. It opens the budget of a search:
+        ``search_budget`` times :attr:`WalkOptions.nominal_evaluations` of *this*
+        registrar's walk (none if ``search_budget`` is ``None``), which every walk of the
+        new registrar and, from now on, of this one is counted in; the new registrar's walks
+        stop when it is spent, this one's always run.
 
         The wider search of :func:`brokenness.compute_brokenness` (a step that falls short,
         regions of a heavily broken remainder, the recovery of lost partitions), as iFMI's
         is iFMI with more peaks. It takes the same prepared reference as this registrar. The
-        measure makes one per call, so the budget bounds the wider searches of that call;
-        once it is spent (:attr:`exhausted`) the measure skips them.
+        measure makes one per call, before any walk, so the budget bounds the walks of that
+        call: once it is spent (:attr:`exhausted`) the measure skips the wider searches, and
+        only Algorithm 1's plain walks (one per step and reference) still run.
         """
         opt = self.options
         wide = RandomWalkRegistrar(
@@ -701,8 +712,10 @@ class RandomWalkRegistrar:
             progress=self.progress,
             progress_every=self.progress_every,
         )
-        if opt.wider_budget is not None:
-            wide._ledger = _Ledger(math.ceil(opt.wider_budget * opt.nominal_evaluations))
+        if opt.search_budget is not None:
+            ledger = _Ledger(math.ceil(opt.search_budget * opt.nominal_evaluations))
+            wide._ledger, wide._held = ledger, True
+            self._ledger = ledger  # counted in it too (replacing a search opened before)
         return wide
 
     def register(
@@ -812,6 +825,7 @@ def _walk(
     steps = 0
     by_time = by_budget = False
     ledger = reg._ledger
+    held = ledger if reg._held else None  # the ledger that stops this walk, if any
 
     def report(done: bool) -> None:
         if reg.progress is None:
@@ -829,7 +843,7 @@ def _walk(
                 evaluations=evaluations,
                 seconds=time.perf_counter() - started,
                 done=done,
-                budget_left=None if ledger is None else ledger.left - evaluations,
+                budget_left=None if held is None else held.left - evaluations,
             )
         )
 
@@ -838,7 +852,7 @@ def _walk(
         if opt.time_budget is not None and time.perf_counter() - started > opt.time_budget:
             by_time = True
             break
-        if ledger is not None and evaluations >= ledger.left:  # the shared budget is spent
+        if held is not None and evaluations >= held.left:  # the search's budget is spent
             by_budget = True
             break
         steps += 1
