@@ -454,7 +454,7 @@ def test_a_search_shares_one_budget_in_units_of_the_plain_walk(building):
         WalkOptions(search_budget=-1.0)
     # the cut is counted in evaluations, not timed: the same calls give the same answers
 
-    def run() -> tuple[list[list[RigidTransform]], int | None]:
+    def run():
         again = RandomWalkRegistrar(seed=5, search_budget=4.0, **_QUICK)
         wider = again.wider()
         again.candidates(prepared, moving, 4)

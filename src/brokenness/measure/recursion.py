@@ -370,7 +370,9 @@ def _near_claimed(
 
 def _wider(registrar: Registrar) -> Registrar:
     """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
-    poses), or ``registrar`` itself for a method without one."""
+    poses; made before any walk, it opens the budget that every walk of the call is counted
+    in, and the measure skips it once it is :func:`~brokenness.measure.views.exhausted`), or
+    ``registrar`` itself for a method without one."""
     wider = getattr(registrar, "wider", None)
     return wider() if callable(wider) else registrar
 
