@@ -555,18 +555,20 @@ def walk_usage(walks: list[Any]) -> dict[str, Any]:
     """The random walk's work in one call, from its last progress report of each walk: walks
     and evaluations of the plain and the wider registrar (the one with a shared budget) in
     units of one plain walk (:attr:`WalkOptions.nominal_evaluations`), and whether the
-    budget was spent."""
+    search's budget was spent (by the walks of either: the plain ones are counted too)."""
     from brokenness.registration.random_walk import WalkOptions
 
-    unit = WalkOptions().nominal_evaluations
+    options = WalkOptions()
+    unit = options.nominal_evaluations
     plain = [p for p in walks if p.budget_left is None]
     wider = [p for p in walks if p.budget_left is not None]
+    used = sum(p.evaluations for p in walks) / unit  # the plain walks are counted too
     return {
         "plain_walks": len(plain),
         "plain_units": sum(p.evaluations for p in plain) / unit,
         "wider_walks": len(wider),
         "wider_units": sum(p.evaluations for p in wider) / unit,
-        "budget_spent": bool(wider) and wider[-1].budget_left <= 0,
+        "budget_spent": options.search_budget is not None and used >= options.search_budget,
     }
 
 
