@@ -89,10 +89,12 @@ numerical settings of the original implementation were not available to us.
   registrar for no more (its :attr:`~RandomWalkRegistrar.exhausted`); the plain walks of
   Algorithm 1 itself (one per step and reference, bounded by ``max_partitions``) always run,
   as iFMI's registrations do. A call's walks thus cost at most ``max(24, its plain walks)``
-  plain walks, plus one step. Why 24: the maps of degree 5 of the realistic benchmark that
-  needed the wider searches most (csail and orebro, degree 5) spent 18.4 and 20.8 (8.0 and
-  8.7 of it in plain walks); at 8 for the wider walks alone, csail's recovery was cut short
-  and it came out one partition short. See the README, issue 13, for what it changed.
+  plain walks, plus one step. Why 24 (measured on the realistic benchmark's degrees 0-5,
+  84 maps, without the budget): a median of 6.3 plain walks' worth a call, 18.4-22.3 for the
+  heaviest of degrees 4 and 5 (8-10 of it in plain walks), 34.3 for one (intel degree 5, 19.4
+  in region walks; it is cut, and comes out 4 instead of 5); on the maps of other places the
+  plain walks alone are 9-19. A budget of 8 for the wider walks alone cut csail degree 5's
+  recovery short (4 instead of 5). See the README, issue 13, for what it changed.
 - Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
   cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
   part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
