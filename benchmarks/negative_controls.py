@@ -73,12 +73,20 @@ def run_pair(
         "map_resolution": m.resolution,
         "reference_resolution": r.resolution,
     }
-    t0 = time.perf_counter()
+    walks: list[Any] = []  # the random walk's last report of each walk
+    extra: dict[str, Any] = {}
+    if method == "random-walk":
+        extra["registration_options"] = {"progress": lambda p: walks.append(p) if p.done else None}
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
-        res = compute_brokenness(m, r, method=method, seed=seed)
+        res = compute_brokenness(m, r, method=method, seed=seed, **extra)
     except Exception as exc:  # a crash is recorded, not fatal to the run
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
+    if method == "random-walk":
+        from realistic import walk_usage
+
+        row["walks"] = walk_usage(walks)
     row.update(
         measured=bool(res.measured),
         degree=res.degree,
@@ -88,6 +96,7 @@ def run_pair(
         unassigned_share=float(res.unassigned_fraction),
         reason=res.reason,
         seconds=time.perf_counter() - t0,
+        cpu_seconds=time.process_time() - c0,  # this worker's CPU time, all its threads
     )
     return row
 
@@ -99,21 +108,21 @@ def _cells(shape: list[int]) -> str:
 def table(rows: list[dict[str, Any]]) -> str:
     """Markdown table of the rows (one line per pair)."""
     lines = [
-        "| pair | map cells | reference cells | measured | degree | largest share | s |",
-        "|---|---|---|---|---|---|---|",
+        "| pair | map cells | reference cells | measured | degree | largest share | s | CPU s |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         if "error" in r:
-            lines.append(f"| {r['pair']} | | | error: {r['error']} | | | |")
+            lines.append(f"| {r['pair']} | | | error: {r['error']} | | | | |")
             continue
         if r.get("skipped"):
-            lines.append(f"| {r['pair']} | | | skipped (time cap) | | | |")
+            lines.append(f"| {r['pair']} | | | skipped (time cap) | | | | |")
             continue
         deg = "-" if r["degree"] is None else str(r["degree"])
         lines.append(
             f"| {r['pair']} | {_cells(r['map_cells'])} | {_cells(r['reference_cells'])} "
             f"| {'yes' if r['measured'] else 'no'} | {deg} | {100 * r['largest_share']:.0f} % "
-            f"| {r['seconds']:.2f} |"
+            f"| {r['seconds']:.2f} | {r.get('cpu_seconds', float('nan')):.2f} |"
         )
     return "\n".join(lines)
 
@@ -137,6 +146,8 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "same_place": len(same),
         "same_place_measured": sum(r["measured"] for r in same),
         "median_seconds": float(np.median([r["seconds"] for r in ctl])) if ctl else None,
+        "median_cpu_seconds": (float(np.median([r["cpu_seconds"] for r in ctl])) if ctl else None),
+        "max_cpu_seconds": float(max(r["cpu_seconds"] for r in ctl)) if ctl else None,
         "total_compute_seconds": float(sum(r.get("seconds", 0.0) for r in rows)),
     }
 

@@ -518,16 +518,23 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         "occupied_cells": truth["occupied_cells"],
         "smallest_share": min(p["share"] for p in truth["partitions"]),
     }
-    t0 = time.perf_counter()
+    walks: list[Any] = []  # the random walk's last report of each walk
+    extra: dict[str, Any] = {}
+    if method == "random-walk":
+        extra["registration_options"] = {"progress": lambda p: walks.append(p) if p.done else None}
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
-        res = compute_brokenness(m, r, method=method, seed=seed)
+        res = compute_brokenness(m, r, method=method, seed=seed, **extra)
     except Exception as exc:
         row.update(error=f"{type(exc).__name__}: {exc}", seconds=time.perf_counter() - t0)
         return row
+    if method == "random-walk":
+        row["walks"] = walk_usage(walks)
     seconds = time.perf_counter() - t0
     found = [p.transform for p in res.partitions]
     row.update(
         seconds=seconds,
+        cpu_seconds=time.process_time() - c0,  # this worker's CPU time, all its threads
         measured=bool(res.measured),
         degree=res.degree,
         reason=res.reason,
@@ -542,6 +549,27 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         ],
     )
     return row
+
+
+def walk_usage(walks: list[Any]) -> dict[str, Any]:
+    """The random walk's work in one call, from its last progress report of each walk: walks
+    and evaluations of the plain and the wider registrar (the one with a shared budget) in
+    units of one plain walk (:attr:`WalkOptions.nominal_evaluations`), and whether the
+    search's budget was spent (by the walks of either: the plain ones are counted too)."""
+    from brokenness.registration.random_walk import WalkOptions
+
+    options = WalkOptions()
+    unit = options.nominal_evaluations
+    plain = [p for p in walks if p.budget_left is None]
+    wider = [p for p in walks if p.budget_left is not None]
+    used = sum(p.evaluations for p in walks) / unit  # the plain walks are counted too
+    return {
+        "plain_walks": len(plain),
+        "plain_units": sum(p.evaluations for p in plain) / unit,
+        "wider_walks": len(wider),
+        "wider_units": sum(p.evaluations for p in wider) / unit,
+        "budget_spent": options.search_budget is not None and used >= options.search_budget,
+    }
 
 
 def _evaluate_job(folder: str, method: str = "ifmi", seed: int | None = None) -> dict[str, Any]:
@@ -707,6 +735,14 @@ def main(argv: list[str] | None = None) -> int:
         f"\ncompute: {compute_wall:.0f} s wall on {workers} worker(s), "
         f"{sum(r.get('seconds', 0.0) for r in rows):.0f} s summed"
     )
+    timed = [r for r in rows if "cpu_seconds" in r]
+    if timed:
+        print(
+            f"per map: median {np.median([r['seconds'] for r in timed]):.1f} s wall, "
+            f"{np.median([r['cpu_seconds'] for r in timed]):.1f} s CPU "
+            f"(max {max(r['seconds'] for r in timed):.1f} s wall, "
+            f"{max(r['cpu_seconds'] for r in timed):.1f} s CPU)"
+        )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(
         json.dumps(

@@ -127,3 +127,46 @@ def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
     assert len(seen) == 1 and isinstance(seen[0], RandomWalkRegistrar)
     assert seen[0].seed == 1
     assert (seen[0].options.walkers_per_angle, seen[0].options.spectral_starts) == (2, 6)
+
+
+def test_the_walks_of_a_map_of_another_place_share_one_budget():
+    """A map of another place falls short in every step, so every step used to pay for the
+    wider walk and the 13 region walks: on this pair, with these settings, 75 plain walks'
+    worth of evaluations in wider walks beside 19 in plain ones (measured without the
+    budget). The walks of a call now share ``search_budget`` plain walks' worth, counted, not
+    timed: the wider ones stop when it is spent."""
+    from _controls import negative_controls
+
+    from brokenness import NothingFoundWarning
+    from brokenness.registration.random_walk import WalkOptions
+
+    control = next(c for c in negative_controls() if c.name == "building_31 vs willow_slam")
+    quick = {"rotations": 6, "max_iterations": 60, "patience": 20}
+    opt = WalkOptions(**quick)
+    done = []
+
+    def spy(p):
+        if p.done:
+            done.append(p)
+
+    with pytest.warns(NothingFoundWarning):
+        result = compute_brokenness(
+            control.map,
+            control.reference,
+            method="random-walk",
+            seed=1,
+            registration_options={**quick, "progress": spy},
+        )
+    assert not result.measured and result.degree is None
+    wider = [p for p in done if p.budget_left is not None]  # the walks of the wider registrar
+    assert wider and len(wider) < len(done)
+    assert opt.search_budget is not None
+    budget = opt.search_budget * opt.nominal_evaluations
+    starts = opt.rotations * (2 + opt.start_grid**2)
+    walkers = 2 * (opt.rotations * opt.walkers_per_angle + opt.spectral_starts)
+    # the walks up to the one that spends the budget use it up, overshooting by at most that
+    # walk's start poses and one step; after it only the plain walks of the steps run
+    last = max(i for i, p in enumerate(done) if p.budget_left is not None)
+    assert budget <= sum(p.evaluations for p in done[: last + 1]) <= budget + starts + walkers
+    assert all(p.budget_left is None for p in done[last + 1 :])
+    assert all(p.budget_left > 0 for p in wider[:-1]) and wider[-1].budget_left <= 0

@@ -414,6 +414,57 @@ def test_the_wider_walk_has_twice_the_start_poses_and_the_same_seed(building):
     assert [c.transform for c in a] == [c.transform for c in b]
 
 
+def test_a_search_shares_one_budget_in_units_of_the_plain_walk(building):
+    from brokenness.registration.random_walk import WalkOptions, WalkProgress
+
+    reports: list[WalkProgress] = []
+    reg = RandomWalkRegistrar(seed=5, search_budget=4.0, progress=reports.append, **_QUICK)
+    opt = reg.options
+    unit = opt.nominal_evaluations
+    walkers = opt.rotations * opt.walkers_per_angle + opt.spectral_starts
+    starts = opt.rotations * (2 + opt.start_grid**2)
+    assert unit == starts + (opt.max_iterations + 1) * walkers
+    assert reg.budget_left is None and not reg.exhausted  # no search opened yet
+    moving, _ = _moved_copy(building, 25.0, (2.0, 1.0))
+    prepared = reg.prepare_reference(building)
+    reg.candidates(prepared, moving, 4)  # before wider(): not counted
+    wide = reg.wider()
+    assert wide.options.search_budget == 4.0
+    assert wide.budget_left == reg.budget_left == 4 * unit and not wide.exhausted
+    reports.clear()
+    reg.candidates(prepared, moving, 4)  # the plain walk is counted...
+    plain = reports[-1]
+    assert plain.done and plain.budget_left is None  # ...but not held to the budget
+    assert wide.budget_left == 4 * unit - plain.evaluations
+    calls = 0
+    while not wide.exhausted:
+        wide.candidates(prepared, moving, 4)  # still answers, also when the budget cuts it
+        calls += 1
+        assert calls < 10
+    assert not reg.exhausted  # the plain registrar always walks
+    done = [r for r in reports if r.done]
+    spent = sum(r.evaluations for r in done)
+    # the walk that spends it stops at its first step past the budget: it overshoots by at
+    # most its start poses and one step of its walkers (twice the plain walk's)
+    assert 4 * unit <= spent <= 4 * unit + starts + 2 * walkers
+    assert done[-1].budget_left == wide.budget_left == reg.budget_left <= 0
+    assert done[-1].step < opt.max_iterations
+    assert RandomWalkRegistrar(search_budget=None).wider().budget_left is None
+    with pytest.raises(ParameterError):
+        WalkOptions(search_budget=-1.0)
+    # the cut is counted in evaluations, not timed: the same calls give the same answers
+
+    def run():
+        again = RandomWalkRegistrar(seed=5, search_budget=4.0, **_QUICK)
+        wider = again.wider()
+        again.candidates(prepared, moving, 4)
+        out = [[c.transform for c in wider.candidates(prepared, moving, 4)] for _ in range(calls)]
+        return out, wider.budget_left
+
+    assert run() == run()
+    assert run()[1] == wide.budget_left
+
+
 def test_same_seed_same_answer_alone_and_after_other_calls(building):
     moving, _ = _moved_copy(building, 25.0, (2.0, 1.0))
     other, _ = _moved_copy(building, -100.0, (0.0, 3.0))

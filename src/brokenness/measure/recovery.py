@@ -57,7 +57,7 @@ from ..transform import RigidTransform
 from .hypotheses import best_hypothesis, rival_chance
 from .options import Settings
 from .partitions import Found, merge_target, reassign, with_fringe
-from .views import candidates_of, moving_remainder, occupied_count
+from .views import candidates_of, exhausted, moving_remainder, occupied_count
 
 __all__ = [
     "DENSE_SHARE",
@@ -324,7 +324,7 @@ def recover(
         settings,
     )
     found = reassign(found, points, index, threshold, min_cells)
-    while found and len(found) < settings.max_partitions:
+    while found and len(found) < settings.max_partitions and not exhausted(registrar):
         t0 = time.perf_counter()
         support = _support(found, points, index, threshold, working.shape, SUPPORT_RADIUS, around)
         suspect = support < SUPPORT_SHARE
@@ -373,8 +373,8 @@ class _Search:
         """The partition that ``cells`` hide, if its hypothesis passes every test."""
         settings = self.settings
         n = int(np.count_nonzero(cells))
-        if n < settings.min_cells:
-            return None
+        if n < settings.min_cells or exhausted(self.registrar):
+            return None  # too few cells, or the registration's budget is spent
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
         states = moving_remainder(

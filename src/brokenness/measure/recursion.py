@@ -137,6 +137,7 @@ from .result import BrokennessResult, Partition
 from .settle import settle
 from .views import (
     candidates_of,
+    exhausted,
     moving_remainder,
     occupied_count,
     prepared_reference,
@@ -351,7 +352,9 @@ def _compute(
 
 def _wider(registrar: Registrar) -> Registrar:
     """The random walk's wider search (:meth:`RandomWalkRegistrar.wider`: twice the start
-    poses), or ``registrar`` itself for a method without one."""
+    poses; made before any walk, it opens the budget that every walk of the call is counted
+    in, and the measure skips it once it is :func:`~brokenness.measure.views.exhausted`), or
+    ``registrar`` itself for a method without one."""
     wider = getattr(registrar, "wider", None)
     return wider() if callable(wider) else registrar
 
@@ -366,7 +369,8 @@ def _region_candidates(
     settings: Settings,
 ) -> list[Candidate]:
     """Hypotheses from regions of the remainder: the tiles of 2 x 2 and 3 x 3 grids over its
-    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped)."""
+    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped, and
+    the tiles left once ``registrar`` has spent its budget)."""
     r, c = rows[remaining], cols[remaining]
     r0, r1, c0, c1 = int(r.min()), int(r.max()) + 1, int(c.min()), int(c.max()) + 1
     out: list[Candidate] = []
@@ -380,6 +384,8 @@ def _region_candidates(
                 cells = remaining & (tile_row == i) & (tile_col == j)
                 if np.count_nonzero(cells) < settings.min_cells:
                     continue
+                if exhausted(registrar):
+                    return out
                 states = moving_remainder(
                     working,
                     rows,
@@ -538,8 +544,8 @@ def _recurse(
         fresh: list[Candidate] = []
         fresh_rest: list[Candidate] = []
         for attempt in (registrar, thorough):
-            if attempt is None:
-                continue
+            if attempt is None or (attempt is thorough and exhausted(attempt)):
+                continue  # no wider search, or its budget is spent (the random walk's)
             limit = max_candidates if attempt is registrar else 2 * max_candidates
             if widen_whole:
                 fresh = candidates_of(attempt, whole, moving_states, limit)
@@ -562,7 +568,7 @@ def _recurse(
                         uses_free,
                         settings.as_cells,
                     )
-                if widen_rest:
+                if widen_rest and not (attempt is thorough and exhausted(attempt)):
                     fresh_rest = candidates_of(attempt, rest, moving_states, limit)
                     pool_rest += fresh_rest
                     best_rest = best_hypothesis(pool_rest, left_points, index, threshold, refined)
@@ -573,6 +579,7 @@ def _recurse(
                 break
         if (
             thorough is not None
+            and not exhausted(thorough)
             and (best is None or np.count_nonzero(best[1]) < needed)
             and n >= max(4 * min_cells, REGIONS_FROM * n_total)
         ):

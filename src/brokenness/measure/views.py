@@ -20,6 +20,7 @@ from ..registration.base import Candidate, CellsRegistrar, OccupiedCells, Regist
 
 __all__ = [
     "candidates_of",
+    "exhausted",
     "prepared_reference",
     "isolated_cells",
     "isolated_points",
@@ -129,6 +130,12 @@ def candidates_of(
     if isinstance(moving, OccupiedCells):
         return cast(CellsRegistrar, registrar).candidates(prepared, moving, max_candidates)
     return registrar.candidates(prepared, moving, max_candidates)
+
+
+def exhausted(registrar: Registrar) -> bool:
+    """Whether ``registrar`` has spent its budget for this measure (its optional attribute
+    ``exhausted``; absent: never), so that its optional searches are skipped."""
+    return bool(getattr(registrar, "exhausted", False))
 
 
 def prepared_reference(

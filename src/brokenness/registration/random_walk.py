@@ -74,6 +74,27 @@ numerical settings of the original implementation were not available to us.
   lockstep steps of all walkers: deterministic) and ``time_budget`` (seconds per
   registration, default none). A time budget makes the result depend on the machine and
   its load; only the iteration budget is deterministic, so it is the default.
+- The budget of a search (ours): :func:`brokenness.compute_brokenness` falls back on a
+  wider walk (:meth:`RandomWalkRegistrar.wider`, twice the start poses) when a step falls
+  short, on wider walks of 13 regions of a remainder that no part dominates, and on wider
+  walks of the suspect cells in each round of the recovery. On a map of the reference's place
+  these run a few times; on a map of another place *every* step falls short, so they ran in
+  every step (up to 15 wider walks, about 30 plain walks' worth, a step), and one control of
+  the quick set took 627 s. So all the walks of one call -- the wider registrar's and the
+  plain one's, which the measure makes before any walk -- are counted in one budget,
+  ``search_budget`` = 24 plain walks' worth of evaluations of Delta
+  (:attr:`WalkOptions.nominal_evaluations`: the start poses plus ``max_iterations + 1``
+  evaluations of every walker). Only the wider walks are held to it: the one that spends it
+  stops there (a count, deterministic like the iteration budget) and the measure asks a spent
+  registrar for no more (its :attr:`~RandomWalkRegistrar.exhausted`); the plain walks of
+  Algorithm 1 itself (one per step and reference, bounded by ``max_partitions``) always run,
+  as iFMI's registrations do. A call's walks thus cost at most ``max(24, its plain walks)``
+  plain walks, plus one step. Why 24 (measured on the realistic benchmark's degrees 0-5,
+  84 maps, without the budget): a median of 6.3 plain walks' worth a call, 18.4-22.3 for the
+  heaviest of degrees 4 and 5 (8-10 of it in plain walks), 34.3 for one (intel degree 5, 19.4
+  in region walks; it is cut, and comes out 4 instead of 5); on the maps of other places the
+  plain walks alone are 9-19. A budget of 8 for the wider walks alone cut csail degree 5's
+  recovery short (4 instead of 5). See the README, issue 13, for what it changed.
 - Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
   cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
   part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
@@ -355,6 +376,15 @@ class WalkOptions:
         Wall-clock seconds per registration after which the walk stops and returns what it
         has (default none). Makes results machine-dependent: only the iteration budget is
         deterministic.
+    search_budget : float, optional
+        Evaluations of Delta that all the walks of one search may spend together -- the
+        walks of a :meth:`RandomWalkRegistrar.wider` registrar and those of the registrar
+        it widens from then on (in ``compute_brokenness``: every walk of the call) -- in
+        units of one walk of the registrar it widens (:attr:`nominal_evaluations`); default
+        24. Only the wider walks are held to it: a wider walk stops when it is spent, and
+        the measure asks a spent registrar for no more wider searches; the plain walks are
+        counted but always run. ``None``: no bound (the previous release). See the module
+        docstring, "Budgets".
 
     Raises
     ------
@@ -382,6 +412,7 @@ class WalkOptions:
     dedupe_cells: float = 8.0
     explain_cells: float = 2.0
     time_budget: float | None = None
+    search_budget: float | None = 24.0
 
     def __post_init__(self) -> None:
         _check_int("rotations", self.rotations)
@@ -408,6 +439,17 @@ class WalkOptions:
         _check_float("explain_cells", self.explain_cells, allow_zero=True)
         if self.time_budget is not None:
             _check_float("time_budget", self.time_budget)
+        if self.search_budget is not None:
+            _check_float("search_budget", self.search_budget)
+
+    @property
+    def nominal_evaluations(self) -> int:
+        """Evaluations of Delta of one full walk with these settings: the coarse grid of start
+        poses (``rotations x (2 + start_grid**2)``), then ``max_iterations + 1`` evaluations of
+        every walker (``rotations x walkers_per_angle + spectral_starts``) -- the unit of
+        ``search_budget``."""
+        walkers = self.rotations * self.walkers_per_angle + self.spectral_starts
+        return self.rotations * (2 + self.start_grid**2) + (self.max_iterations + 1) * walkers
 
 
 _OPTION_NAMES = frozenset(f.name for f in fields(WalkOptions))
@@ -435,6 +477,10 @@ class WalkProgress:
         Wall-clock time of this registration so far.
     done : bool
         True for the last report of a registration.
+    budget_left : int, optional
+        For a walk of a :meth:`RandomWalkRegistrar.wider` registrar, the evaluations left in
+        the budget of its search once this walk's are counted (``None`` for the walks of
+        other registrars, which the budget does not stop).
     """
 
     call: int
@@ -447,6 +493,7 @@ class WalkProgress:
     evaluations: int
     seconds: float
     done: bool
+    budget_left: int | None = None
 
 
 ProgressCallback = Callable[[WalkProgress], None]
@@ -455,6 +502,15 @@ ProgressCallback = Callable[[WalkProgress], None]
 # --------------------------------------------------------------------------------------------
 # The registrar
 # --------------------------------------------------------------------------------------------
+@dataclass(eq=False)
+class _Ledger:
+    """Evaluations of Delta left to the walks of one search: a :meth:`RandomWalkRegistrar.wider`
+    registrar, which the budget stops, and the registrar it widens, which the budget only
+    counts (it may end below 0 by the walk that spent it)."""
+
+    left: int
+
+
 @dataclass(frozen=True, eq=False)
 class _PreparedReference:
     """What :meth:`RandomWalkRegistrar.prepare_reference` computes once."""
@@ -531,6 +587,10 @@ class RandomWalkRegistrar:
         self.progress = progress
         self.progress_every = _check_int("progress_every", progress_every)
         self._calls = 0
+        # set by wider(): the budget of the search, shared by the wider registrar (held to it)
+        # and the one it widens (counted only)
+        self._ledger: _Ledger | None = None
+        self._held = False  # whether the walks stop when the ledger is spent
 
     def __repr__(self) -> str:
         return f"RandomWalkRegistrar(seed={self.seed}, options={self.options!r})"
@@ -615,17 +675,36 @@ class RandomWalkRegistrar:
         )
         return _to_candidates(walk, prepared_reference, full, self.options, max_candidates)
 
+    @property
+    def budget_left(self) -> int | None:
+        """Evaluations of Delta left in the budget of the search this registrar's walks are
+        counted in (``None`` until :meth:`wider` opens one, and for ``search_budget=None``)."""
+        return None if self._ledger is None else self._ledger.left
+
+    @property
+    def exhausted(self) -> bool:
+        """Whether this :meth:`wider` registrar has spent its search's budget: the measure
+        then asks it for no more searches (the registrar it widens is never exhausted)."""
+        return self._held and self._ledger is not None and self._ledger.left <= 0
+
     def wider(self) -> RandomWalkRegistrar:
         """The same walk with twice the start poses: ``walkers_per_angle`` and
         ``spectral_starts`` doubled (0 stays 0: the pure stochastic search stays pure),
-        same seed, budgets and progress callback.
+        same seed, per-walk budgets and progress callback. It opens the budget of a search:
+        ``search_budget`` times :attr:`WalkOptions.nominal_evaluations` of *this*
+        registrar's walk (none if ``search_budget`` is ``None``), which every walk of the
+        new registrar and, from now on, of this one is counted in; the new registrar's walks
+        stop when it is spent, this one's always run.
 
         The wider search of :func:`brokenness.compute_brokenness` (a step that falls short,
         regions of a heavily broken remainder, the recovery of lost partitions), as iFMI's
-        is iFMI with more peaks. It takes the same prepared reference as this registrar.
+        is iFMI with more peaks. It takes the same prepared reference as this registrar. The
+        measure makes one per call, before any walk, so the budget bounds the walks of that
+        call: once it is spent (:attr:`exhausted`) the measure skips the wider searches, and
+        only Algorithm 1's plain walks (one per step and reference) still run.
         """
         opt = self.options
-        return RandomWalkRegistrar(
+        wide = RandomWalkRegistrar(
             seed=self.seed,
             options=replace(
                 opt,
@@ -635,6 +714,11 @@ class RandomWalkRegistrar:
             progress=self.progress,
             progress_every=self.progress_every,
         )
+        if opt.search_budget is not None:
+            ledger = _Ledger(math.ceil(opt.search_budget * opt.nominal_evaluations))
+            wide._ledger, wide._held = ledger, True
+            self._ledger = ledger  # counted in it too (replacing a search opened before)
+        return wide
 
     def register(
         self, reference_states: NDArray[np.int8], moving_states: NDArray[np.int8]
@@ -670,6 +754,7 @@ class _WalkResult:
     steps: int
     restarts: int
     stopped_by_time: bool
+    stopped_by_budget: bool
 
 
 def _transform_arrays(
@@ -740,7 +825,9 @@ def _walk(
     n_recent = np.zeros(n_walkers, dtype=np.int64)
     active = np.ones(n_walkers, dtype=bool)
     steps = 0
-    by_time = False
+    by_time = by_budget = False
+    ledger = reg._ledger
+    held = ledger if reg._held else None  # the ledger that stops this walk, if any
 
     def report(done: bool) -> None:
         if reg.progress is None:
@@ -758,6 +845,7 @@ def _walk(
                 evaluations=evaluations,
                 seconds=time.perf_counter() - started,
                 done=done,
+                budget_left=None if held is None else held.left - evaluations,
             )
         )
 
@@ -765,6 +853,9 @@ def _walk(
     while active.any() and steps < opt.max_iterations:
         if opt.time_budget is not None and time.perf_counter() - started > opt.time_budget:
             by_time = True
+            break
+        if held is not None and evaluations >= held.left:  # the search's budget is spent
+            by_budget = True
             break
         steps += 1
         # Draws for every walker, active or not: the stream does not depend on who is done.
@@ -818,6 +909,8 @@ def _walk(
         if steps % reg.progress_every == 0:
             report(False)
     report(True)
+    if ledger is not None:
+        ledger.left -= evaluations
     return _WalkResult(
         states=best_state,
         delta=best,
@@ -827,6 +920,7 @@ def _walk(
         steps=steps,
         restarts=int(restarts.sum()),
         stopped_by_time=by_time,
+        stopped_by_budget=by_budget,
     )
 
 
