@@ -266,8 +266,13 @@ def consolidate(
     explained by another's transform (the test of :func:`merge_target`) joins it when one
     of the two transforms makes at least :data:`JOIN_SHARE` of the cells of both agree
     (within ``threshold``; neighbouring parts of a regular building can pass the loose test
-    alone). The joined partition keeps that transform (the one that makes more cells agree),
-    and the cells are reassigned.
+    alone). Two partitions at one rotation (within :data:`SAME_ROTATION_DEG`) are joined
+    only if the transform given up has no evidence of its own, the test of
+    :func:`drop_redundant` (fewer than ``min_cells`` cells agree under it and not under the
+    one kept): the two parts of a pure-shift bump pass the 80 % when one is much larger than
+    the other, but the walls across the shift agree under one of them only. The joined
+    partition keeps that transform (the one that makes more cells agree), and the cells are
+    reassigned.
     """
     threshold, merge_threshold, min_cells = settings.threshold, settings.loose, settings.min_cells
     while len(found) > 1:
