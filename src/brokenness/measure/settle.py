@@ -237,8 +237,9 @@ def _best_split(
             ty = candidates[int(names[y])]
             only_x = open_at[halves[x] & ~halves[y]]
             only_y = open_at[halves[y] & ~halves[x]]
-            if _explains(tx, walls[only_y], index, settings) or _explains(
-                ty, walls[only_x], index, settings
+            rest = [t for q, t in enumerate(transforms) if q != j]
+            if _explains([tx, *rest], walls[only_y], index, settings) or _explains(
+                [ty, *rest], walls[only_x], index, settings
             ):
                 continue
             chance = settings.needed(open_cells - int(counts[x]), p0)[0]
@@ -275,10 +276,14 @@ def _distinct(
 
 
 def _explains(
-    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, settings: Settings
+    transforms: list[RigidTransform],
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
 ) -> bool:
-    """``transform`` explains ``cells`` loosely (the merge test of the recursion)."""
-    return merge_target([Found(transform, _NO_CELLS, 0.0, 0.0)], cells, index, settings.loose) == 0
+    """One of ``transforms`` explains ``cells`` loosely (the merge test of the recursion)."""
+    found = [Found(t, _NO_CELLS, 0.0, 0.0) for t in transforms]
+    return merge_target(found, cells, index, settings.loose) is not None
 
 
 _NO_CELLS = np.zeros(0, dtype=np.intp)
@@ -309,7 +314,12 @@ def _candidates(
         if SUPPORT_SHARE <= share[j] < EXPLAINED:
             starts = [transforms[j]]
             shifted = _shift_search(
-                transforms[j], points[cells], index, settings.threshold, settings.loose
+                transforms[j],
+                points[cells],
+                index,
+                settings.threshold,
+                settings.loose,
+                settings.significance,
             )
             if shifted is not None:
                 starts.append(shifted)
@@ -336,7 +346,9 @@ def _shifted_copies(
     if np.count_nonzero(left) < settings.min_cells:
         return seeds, candidates
     for j, t in enumerate(transforms):
-        shifted = _shift_search(t, points[left], index, settings.threshold, settings.loose)
+        shifted = _shift_search(
+            t, points[left], index, settings.threshold, settings.loose, settings.significance
+        )
         if shifted is None:
             continue
         cells = points[left | agree[j]]
@@ -354,10 +366,13 @@ def _shift_search(
     index: ReferenceIndex,
     threshold: float,
     reach: float,
+    significance: float,
 ) -> RigidTransform | None:
     """``transform`` followed by the whole-cell shift, within :data:`MAX_SHIFT` cells, that
-    makes the most ``cells`` agree, if it makes more agree than no shift and is longer than
-    ``reach`` (the refinement's: it finds shorter ones itself); ``None`` if not.
+    makes the most ``cells`` agree, if it makes more agree than no shift by more than chance
+    could (``significance`` standard deviations of the count of cells agreeing by chance)
+    and is longer than ``reach`` (the refinement's: it finds shorter ones itself); ``None``
+    if not.
 
     The refinement's trimmed ICP only pulls on cells within the loose threshold, so it cannot
     reach a part shifted farther against a partition (a pure-shift bump of half a metre is
@@ -400,8 +415,12 @@ def _shift_search(
     counts = counted(fine)
     best = int(np.argmax(counts))
     dy, dx = (int(v) for v in fine[best])
-    if counts[best] <= counts[-1] or np.hypot(dx, dy) <= reach:
-        return None  # no better shift, or one the refinement reaches from here
+    # more cells than no shift, by more than chance could add (the stopping rule's z and
+    # chance agreement, over the cells counted), and farther than the refinement reaches
+    p0 = index.chance_agreement(threshold)
+    margin = significance * np.sqrt(at.size * p0 * (1.0 - p0))
+    if counts[best] - counts[-1] <= margin or np.hypot(dx, dy) <= reach:
+        return None
     return RigidTransform(0.0, float(dx), float(dy)).compose(transform)
 
 
