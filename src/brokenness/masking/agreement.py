@@ -144,7 +144,7 @@ class ReferenceIndex:
             out = np.full(p.shape, np.inf)
             dist, idx = self.tree.query(p, k=1, distance_upper_bound=max_distance)
             found = np.isfinite(dist)
-            out[found] = self.occupied_points[idx[found]]
+            out[found] = self.occupied_points[np.asarray(idx)[found]]
             return out
         # nearest-cell lookup in one remap (cells off the grid read -1: no neighbour)
         label = sample_at(self.nearest_occupied, p, -1.0, nearest=True)

@@ -312,7 +312,7 @@ def _candidates(
         share = agree[:, cells].mean(axis=1)
         j = int(np.argmax(share))  # the partition of the tile: a tile mostly holds one part
         if SUPPORT_SHARE <= share[j] < EXPLAINED:
-            starts = [transforms[j]]
+            origins = [transforms[j]]
             shifted = _shift_search(
                 transforms[j],
                 points[cells],
@@ -322,8 +322,8 @@ def _candidates(
                 settings.significance,
             )
             if shifted is not None:
-                starts.append(shifted)
-            for refit in starts:
+                origins.append(shifted)
+            for refit in origins:
                 for _ in range(REFITS):
                     refit = _refit(refit, points[cells], index, settings)
                 if refit is not transforms[j]:
