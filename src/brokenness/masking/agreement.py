@@ -22,6 +22,7 @@ from .distance import lookup_distance, manhattan_distance_map, sample_at
 
 __all__ = [
     "ReferenceIndex",
+    "ball_offsets",
     "cell_points",
     "manhattan_ball",
     "unmatched_reference",
@@ -247,14 +248,10 @@ def _clear_ball(
     h, w = out.shape
     flat = out.reshape(-1)  # a view: ``out`` is C-contiguous
     base = rows * w + cols
-    for dr in range(-radius, radius + 1):
-        r = rows + dr
-        row_ok = (r >= 0) & (r < h)
-        span = radius - abs(dr)
-        for dc in range(-span, span + 1):
-            c = cols + dc
-            ok = row_ok & (c >= 0) & (c < w)
-            flat[base[ok] + (dr * w + dc)] = False
+    for dr, dc in ball_offsets(radius):
+        r, c = rows + dr, cols + dc
+        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        flat[base[ok] + (dr * w + dc)] = False
 
 
 def _clear_dilated(
@@ -296,3 +293,8 @@ def manhattan_ball(radius: int) -> NDArray[np.uint8]:
     """Structuring element of the cells within Manhattan distance ``radius`` of the centre."""
     r = np.arange(-radius, radius + 1)
     return (np.abs(r)[:, None] + np.abs(r)[None, :] <= radius).astype(np.uint8)
+
+
+def ball_offsets(radius: int) -> list[tuple[int, int]]:
+    """The offsets ``(dr, dc)`` of the cells of :func:`manhattan_ball`, row by row."""
+    return [(int(dr) - radius, int(dc) - radius) for dr, dc in np.argwhere(manhattan_ball(radius))]

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..masking import within_manhattan
+from ..masking.agreement import ball_offsets
 from ..transform import RigidTransform
 
 __all__ = ["mostly_claimed", "mostly_on_claimed", "prefer_unexplained"]
@@ -129,14 +130,10 @@ def mostly_on_claimed(
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
     rows, cols = rows[inside], cols[inside]
     on = np.zeros(rows.shape[0], dtype=bool)
-    for dr in range(-radius, radius + 1):
-        r = rows + dr
-        row_ok = (r >= 0) & (r < h)
-        span = radius - abs(dr)
-        for dc in range(-span, span + 1):
-            c = cols + dc
-            k = np.flatnonzero(row_ok & (c >= 0) & (c < w) & ~on)
-            on[k] = occupied[r[k], c[k]] & ~available[r[k], c[k]]
+    for dr, dc in ball_offsets(radius):
+        r, c = rows + dr, cols + dc
+        k = np.flatnonzero((r >= 0) & (r < h) & (c >= 0) & (c < w) & ~on)
+        on[k] = occupied[r[k], c[k]] & ~available[r[k], c[k]]
     return bool(np.count_nonzero(on) * 2 >= np.count_nonzero(agree))
 
 
