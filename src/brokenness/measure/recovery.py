@@ -283,7 +283,7 @@ def recover(
     registrar: Registrar,
     reference: Any,
     settings: Settings,
-) -> list[Found]:
+) -> tuple[list[Found], list[RigidTransform]]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
     See the module docstring for the steps and the tests a new partition must pass.
@@ -306,9 +306,15 @@ def recover(
 
     Returns
     -------
-    list of Found
+    found : list of Found
         Every cell given to the partition that aligns it best
         (:func:`~brokenness.measure.partitions.reassign`).
+    rivals : list of RigidTransform
+        The best hypotheses of the suspects that were too few cells for a new partition
+        (step 4's count): where a partition sits at a wrong place that fits its cells
+        about as well (a symmetric twin of a room), its true place leaves a few of its cells
+        unexplained, and its true transform is found from them; :func:`~brokenness.measure.
+        settle.settle` offers these to every partition as replacements.
     """
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     around = _occupied_around(points, working.shape, SUPPORT_RADIUS)
@@ -324,6 +330,7 @@ def recover(
         settings,
     )
     found = reassign(found, points, index, threshold, min_cells)
+    rivals: list[RigidTransform] = []
     while found and len(found) < settings.max_partitions and not exhausted(registrar):
         t0 = time.perf_counter()
         support = _support(found, points, index, threshold, working.shape, SUPPORT_RADIUS, around)
@@ -342,7 +349,9 @@ def recover(
             tries.append(suspect)
         new = None
         for cells in tries:
-            new = search.lost_partition(found, cells)
+            new, rival = search.lost_partition(found, cells)
+            if rival is not None:
+                rivals.append(rival)
             if new is not None:
                 break
         if new is None:
@@ -352,7 +361,7 @@ def recover(
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
-    return found
+    return found, rivals
 
 
 @dataclass(frozen=True)
@@ -369,12 +378,16 @@ class _Search:
     p0: float  # chance agreement of a random placement (bounds the rivals' chance)
     settings: Settings
 
-    def lost_partition(self, found: list[Found], cells: NDArray[np.bool_]) -> Found | None:
-        """The partition that ``cells`` hide, if its hypothesis passes every test."""
+    def lost_partition(
+        self, found: list[Found], cells: NDArray[np.bool_]
+    ) -> tuple[Found | None, RigidTransform | None]:
+        """The partition that ``cells`` hide, if its hypothesis passes every test; else
+        ``None`` and, if the hypothesis failed only the count (too few of ``cells`` agree
+        coherently for a new partition), the hypothesis as a rival."""
         settings = self.settings
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells or exhausted(self.registrar):
-            return None  # too few cells, or the registration's budget is spent
+            return None, None  # too few cells, or the registration's budget is spent
         pts = self.points
         rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
         states = moving_remainder(
@@ -387,7 +400,7 @@ class _Search:
             settings.as_cells,
         )
         if occupied_count(states) < settings.min_cells:
-            return None
+            return None, None
         left = np.flatnonzero(cells)
         candidates = _new_ones(
             candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
@@ -396,7 +409,7 @@ class _Search:
             settings.loose,
         )
         if not candidates:
-            return None
+            return None, None
         # the cells a hypothesis explains count only where the cells around agree under it
         # too (a partition is a contiguous region; coincidences are scattered); that is
         # counted for the best few candidates by plain agreement
@@ -415,7 +428,7 @@ class _Search:
             [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, settings.threshold
         )
         if best is None:
-            return None
+            return None, None
         transform = best[0]
         agree = self._coherent(transform, cells)
         k = int(np.count_nonzero(agree))
@@ -431,11 +444,11 @@ class _Search:
         )
         chance, _, needed = settings.needed(n, p_step)
         if k < needed:
-            return None
+            return None, transform
         members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
         if merge_target(found, pts[members], self.index, settings.loose) is not None:
-            return None  # an existing partition's transform, not a lost one
-        return Found(transform, members, (k - chance) / k, 0.0)
+            return None, None  # an existing partition's transform, not a lost one
+        return Found(transform, members, (k - chance) / k, 0.0), None
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least

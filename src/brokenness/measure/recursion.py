@@ -161,6 +161,9 @@ _THOROUGH_BELOW = 0.4
 #: this share of the map's occupied cells (a heavily broken map, no part dominating it).
 REGIONS_FROM = 0.1
 REGION_GRIDS = (2, 3)
+#: The recovery and the tests after it run again, up to this many times in all, while the
+#: recovery finds a new partition among the cells the settled transforms leave unexplained.
+RECOVERY_ROUNDS = 3
 
 
 def _as_map(value: MapLike, role: str) -> OccupancyMap:
@@ -290,15 +293,14 @@ def _compute(
     whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    found = recover(found, points, working, index, thorough, whole, settings)
+    found, rivals = recover(found, points, working, index, thorough, whole, settings)
+    found = _tested(found, points, working, index, settings, rivals)
+    for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
+        again, rivals = recover(found, points, working, index, thorough, whole, settings)
+        if len(again) <= len(found):
+            break
+        found = _tested(again, points, working, index, settings, rivals)
     del whole  # the prepared reference (its distance map): no registration from here on
-    found = consolidate(found, points, index, settings)
-    found = drop_incoherent(found, points, index, settings, working.shape)
-    found = drop_redundant(found, points, index, settings)
-    settled = settle(found, points, index, settings)
-    if settled is not found:  # the tests again: settling moves transforms, it adds nothing
-        found = drop_incoherent(settled, points, index, settings, working.shape)
-        found = drop_redundant(found, points, index, settings)
     reason, map_ratio, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
@@ -348,6 +350,27 @@ def _compute(
         reason=reason,
         contradiction=map_ratio,
     )
+
+
+def _tested(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    settings: Settings,
+    rivals: list[RigidTransform],
+) -> list[Found]:
+    """The tests of what the recursion and the recovery found, in order: join one-piece
+    partitions, drop those that are not real, settle the transforms (offering ``rivals``),
+    and, if settling changed anything, drop again."""
+    found = consolidate(found, points, index, settings)
+    found = drop_incoherent(found, points, index, settings, working.shape)
+    found = drop_redundant(found, points, index, settings)
+    settled = settle(found, points, index, settings, rivals)
+    if settled is not found:  # the tests again: settling moves transforms, it adds nothing
+        found = drop_incoherent(settled, points, index, settings, working.shape)
+        found = drop_redundant(found, points, index, settings)
+    return found
 
 
 def _wider(registrar: Registrar) -> Registrar:

@@ -59,6 +59,8 @@ more; a partition is added only with the evidence a new partition of the recursi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -102,6 +104,7 @@ def settle(
     points: NDArray[np.float64],
     index: ReferenceIndex,
     settings: Settings,
+    rivals: Sequence[RigidTransform] = (),
 ) -> list[Found]:
     """Refit each partition's transform on tiles of its cells; keep what explains more, and
     split a partition whose refits are two parts (see the module docstring).
@@ -116,6 +119,10 @@ def settle(
         The reference.
     settings : Settings
         The per-map settings (``threshold``, ``loose``, ``min_cells``).
+    rivals : sequence of RigidTransform, optional
+        Transforms found elsewhere (the recovery's hypotheses too weak for a new partition),
+        offered to every partition as replacements; one is taken only if it makes more
+        cells agree than chance could (see step 3).
 
     Returns
     -------
@@ -133,10 +140,15 @@ def settle(
     seeds, candidates = _candidates(transforms, agree, walls, index, settings)
     more_seeds, more = _shifted_copies(transforms, agree, walls, index, settings)
     seeds, candidates = seeds + more_seeds, candidates + more
+    local = len(candidates)  # the refits; the rivals, offered to every partition, after them
+    for t in rivals:
+        seeds += list(range(len(transforms)))
+        candidates += [t] * len(transforms)
     if not candidates:
         return found
     offered = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in candidates])
     seeds_arr = np.asarray(seeds)
+    p0 = index.chance_agreement(threshold)
     added: list[Found] = []
     while True:
         covered = agree.sum(axis=0)
@@ -148,6 +160,13 @@ def settle(
                 continue
             others = (covered - agree[j]) > 0
             gains = np.count_nonzero(others | offered[mine], axis=1) - explained
+            # a rival is not a refit of the partition's own cells: it must make more of the
+            # cells the two contest agree than chance could (the shift search's margin)
+            far = mine >= local
+            if far.any():
+                contested = np.count_nonzero((agree[j] | offered[mine[far]]) & ~others, axis=1)
+                margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
+                gains[far] = np.where(gains[far] > margin, gains[far], 0)
             k = int(np.argmax(gains))
             if gains[k] > best_gain:
                 best_gain, best = int(gains[k]), (j, int(mine[k]))
@@ -160,9 +179,8 @@ def settle(
         # (step 4)
         if len(transforms) >= settings.max_partitions:
             break
-        split = _best_split(
-            transforms, agree, candidates, offered, seeds_arr, walls, index, settings
-        )
+        own = np.where(np.arange(seeds_arr.size) < local, seeds_arr, -1)  # no rival halves
+        split = _best_split(transforms, agree, candidates, offered, own, walls, index, settings)
         if split is None:
             break
         j, a, b, confidence = split
@@ -181,7 +199,7 @@ def settle(
     ]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
-        return settle(settled, points, index, settings)
+        return settle(settled, points, index, settings, rivals)
     return settled
 
 
