@@ -150,30 +150,33 @@ def settle(
     seeds_arr = np.asarray(seeds)
     p0 = index.chance_agreement(threshold)
     added: list[Found] = []
+    alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
         covered = agree.sum(axis=0)
         explained = int(np.count_nonzero(covered))
-        best_gain, best = 0, None
+        best_gain, best, emptied = 0, None, _NO_CELLS
         for j in range(len(transforms)):
             mine = np.flatnonzero(seeds_arr == j)
             if mine.size == 0:
                 continue
             others = (covered - agree[j]) > 0
-            gains = np.count_nonzero(others | offered[mine], axis=1) - explained
-            # a rival is not a refit of the partition's own cells: it must make more of the
-            # cells the two contest agree than chance could (the shift search's margin)
-            far = mine >= local
-            if far.any():
-                contested = np.count_nonzero((agree[j] | offered[mine[far]]) & ~others, axis=1)
-                margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
-                gains[far] = np.where(gains[far] > margin, gains[far], 0)
-            k = int(np.argmax(gains))
-            if gains[k] > best_gain:
-                best_gain, best = int(gains[k]), (j, int(mine[k]))
+            near = mine[mine < local]
+            if near.size:
+                gains = np.count_nonzero(others | offered[near], axis=1) - explained
+                k = int(np.argmax(gains))
+                if gains[k] > best_gain:
+                    best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
+            for c in mine[mine >= local]:
+                gain, redundant = _rival_gain(j, offered[c], agree, covered, p0, settings)
+                if gain > best_gain:
+                    best_gain, best, emptied = gain, (j, int(c)), redundant
         if best is not None:
             j, c = best
             transforms[j], agree[j] = candidates[c], offered[c]
             seeds_arr[c] = -1  # used
+            for k in emptied:
+                alive[k], agree[k] = False, False
+                seeds_arr[seeds_arr == k] = -1
             continue
         # no replacement adds a cell: a partition whose refits disagree may be two parts
         # (step 4)
@@ -191,16 +194,59 @@ def settle(
         agree = np.vstack([agree, offered[b][None]])
         added.append(Found(candidates[b], np.zeros(0, np.intp), confidence, 0.0))
         seeds_arr[b] = -1
-    if not added and all(t is f.transform for t, f in zip(transforms, found, strict=True)):
+    if (
+        not added
+        and alive.all()
+        and all(t is f.transform for t, f in zip(transforms, found, strict=True))
+    ):
         return found
     moved = [
         Found(t, f.members, f.confidence, f.seconds)
-        for t, f in zip(transforms[: len(found)], found, strict=True)
+        for t, f, kept in zip(transforms[: len(found)], found, alive, strict=True)
+        if kept
     ]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
         return settle(settled, points, index, settings, rivals)
     return settled
+
+
+def _rival_gain(
+    j: int,
+    offered: NDArray[np.bool_],
+    agree: NDArray[np.bool_],
+    covered: NDArray[np.int64],
+    p0: float,
+    settings: Settings,
+) -> tuple[int, NDArray[np.intp]]:
+    """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
+    gains, and the partitions it leaves redundant (step 3).
+
+    The score is the one the recursion maximises, with the cost of a partition that its
+    stopping rule implies: cells explained, less ``min_cells`` per partition. A part at a
+    wrong place may be held by two partitions, each explaining half of its cells there, so
+    the rival can gain cells only with the other dropped: a partition that had at least
+    ``min_cells`` cells no other explains and has fewer once the rival is in is dropped,
+    which gains ``min_cells`` less the cells it still explained alone. A rival is not a refit
+    of the partition's own cells, so the gain must also exceed what chance could give on the
+    cells the two contest (the shift search's margin); else ``0``.
+    """
+    after = covered - agree[j] + offered
+    others = (covered - agree[j]) > 0
+    alone_before = np.count_nonzero(agree & (covered == 1), axis=1)
+    alone_after = np.count_nonzero(agree & (after == 1), axis=1)
+    emptied = (alone_before >= settings.min_cells) & (alone_after < settings.min_cells)
+    emptied[j] = False
+    redundant = np.flatnonzero(emptied)
+    if redundant.size:
+        after = after - agree[redundant].sum(axis=0)
+    gain = (
+        int(np.count_nonzero(after)) - int(np.count_nonzero(covered))
+        + settings.min_cells * int(redundant.size)
+    )
+    contested = int(np.count_nonzero((agree[j] | offered) & ~others))
+    margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
+    return (gain, redundant) if gain > margin else (0, _NO_CELLS)
 
 
 def _best_split(
