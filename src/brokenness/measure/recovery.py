@@ -34,6 +34,14 @@ the recursion:
    smallest partition's cells when every cell goes to its best partition again;
 5. repeats until nothing new is found (or ``max_partitions`` is reached).
 
+A best hypothesis that fails only the count of step 4 is returned as a *rival*: when a
+partition sits at a wrong place that fits its own cells (a twin of its room), the cells of
+its part that the wrong place leaves are suspects, too few for a new partition, and their
+hypothesis is the part's true transform; :func:`~brokenness.measure.settle.settle` offers it
+to every partition as a replacement. After the settle step, the recovery runs again while it
+finds new partitions (the recursion's ``RECOVERY_ROUNDS``): settled transforms leave clearer
+suspects.
+
 On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
 :func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 145 maps
 instead of 136, and on the 3 x 2 benchmark map of building 31 it finds the sixth partition

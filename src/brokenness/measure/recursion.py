@@ -21,9 +21,13 @@ The recursion, for a map M and a reference R::
             them agree (cells a partition took by coincidence)
         register S with R; count its best hypothesis as a new partition if the cells of
         S it explains coherently pass the stopping rule; reassign every cell
+        (hypotheses too weak for a new partition are kept as rivals)
     join partitions that one of their transforms aligns as one piece (measure.partitions)
     drop partitions that are not real: too few coherent cells (measure.recovery), or a
         shifted copy at the rotation of another (measure.partitions)
+    settle each transform: refits on tiles of its cells, shifts, splits, rivals
+        (measure.settle), and drop again
+    recover again (and the steps after it) while new partitions are found
     measured only if the map's free space does not cross the reference's walls
         (measure.evidence): else not the same place, no degree
 

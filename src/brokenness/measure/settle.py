@@ -34,7 +34,17 @@ mostly holds one. So :func:`settle`:
 3. replaces, one at a time, the transform of a partition by one of its own candidates when
    that makes more cells of the map agree with the reference under some partition (the
    union of the cells explained, the count the recursion itself maximises), the largest
-   gain first, until no replacement adds a cell;
+   gain first, until no replacement adds a cell. *Rivals* (transforms found elsewhere: the
+   recovery's hypotheses of suspects too few for a new partition) are offered to every
+   partition too: a part registered where a twin of its room is (turned by 90 or 180
+   degrees, or far off) fits its own cells there, so no refit moves it, but its true place
+   leaves a few of its cells unexplained, and the recovery finds the true transform among
+   them. A rival is judged by the same count with the cost of a partition that the stopping
+   rule implies (cells explained, less ``min_cells`` per partition: a part held by two wrong
+   placements gains from the rival only once the other is dropped), so a partition that
+   had at least ``min_cells`` cells no other explains and has fewer with the rival in is
+   dropped; and its gain must exceed what chance could give on the cells the two contest
+   (the shift search's margin, below);
 4. when no replacement adds a cell, *splits* a partition in two if its refits say it holds
    two parts: the compromise of two parts at one rotation, shifted against each other (a
    pure-shift bump), is refitted to one part on that part's tiles and to the other on the
@@ -164,7 +174,7 @@ def settle(
             if near.size:
                 gains = np.count_nonzero(others | offered[near], axis=1) - explained
                 k = int(np.argmax(gains))
-                if gains[k] > best_gain:
+                if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
                 gain, redundant = _rival_gain(j, offered[c], agree, covered, p0, settings)
@@ -174,9 +184,9 @@ def settle(
             j, c = best
             transforms[j], agree[j] = candidates[c], offered[c]
             seeds_arr[c] = -1  # used
-            for k in emptied:
-                alive[k], agree[k] = False, False
-                seeds_arr[seeds_arr == k] = -1
+            for dead in emptied.tolist():
+                alive[dead], agree[dead] = False, False
+                seeds_arr[seeds_arr == dead] = -1
             continue
         # no replacement adds a cell: a partition whose refits disagree may be two parts
         # (step 4)
@@ -241,7 +251,8 @@ def _rival_gain(
     if redundant.size:
         after = after - agree[redundant].sum(axis=0)
     gain = (
-        int(np.count_nonzero(after)) - int(np.count_nonzero(covered))
+        int(np.count_nonzero(after))
+        - int(np.count_nonzero(covered))
         + settings.min_cells * int(redundant.size)
     )
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))

@@ -1,0 +1,98 @@
+"""A partition at a wrong place, and the rival that puts it at its true one.
+
+In a building of similar rooms a small part can be registered where a twin of its room is:
+its own cells fit there, so neither the local refits of :func:`settle` nor the shift search
+(half a tile) can move it. The recovery then finds its true transform among the cells the
+wrong place leaves unexplained, too few for a new partition; :func:`settle` takes such a
+*rival* as the partition's transform when it makes more of the contested cells agree than
+chance could.
+
+Building 31 (a real map, 520 x 520 cells): the part right of column 360 turned by 180
+degrees about its centre, and its partition placed 120 cells off its true place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _breaking import SETTINGS, move_about
+
+from brokenness import OccupancyMap, RigidTransform, load_map
+from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.partitions import Found
+from brokenness.measure.settle import settle
+
+DATA = Path(__file__).parent / "data"
+CUT = 360
+
+
+@pytest.fixture(scope="module")
+def reference() -> OccupancyMap:
+    m = load_map(DATA / "building_31.yaml")
+    states = np.full((520, 520), -1, np.int8)
+    crop = m.states[:520, :520]
+    states[: crop.shape[0], : crop.shape[1]] = crop
+    return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
+
+
+@pytest.fixture(scope="module")
+def index(reference: OccupancyMap) -> ReferenceIndex:
+    return ReferenceIndex.build(reference)
+
+
+@pytest.fixture(scope="module")
+def broken(reference: OccupancyMap):
+    """Map cells, the right part's mask, its true transform (map -> reference) and the
+    wrong one its partition starts with."""
+    ref_points = cell_points(reference.occupied)
+    right = ref_points[:, 0] >= CUT
+    motion = move_about(tuple(ref_points[right].mean(axis=0)), 180.0, (-40.0, 20.0))
+    points = ref_points.copy()
+    points[right] = motion.apply(ref_points[right])
+    truth = motion.inverse()
+    wrong = RigidTransform(0.0, 0.0, 120.0).compose(truth)
+    return points, right, truth, wrong
+
+
+def _error(t: RigidTransform, truth: RigidTransform, pts: np.ndarray) -> float:
+    return float(np.median(t.displacement(truth, pts)))
+
+
+def _found(points, right, wrong) -> list[Found]:
+    return [
+        Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
+        Found(wrong, np.flatnonzero(right), 1.0, 0.0),
+    ]
+
+
+def test_settle_takes_a_rival_that_explains_the_part(index, broken) -> None:
+    points, right, truth, wrong = broken
+    alone = settle(_found(points, right, wrong), points, index, SETTINGS)
+    # without the rival, nothing local reaches the true place
+    assert min(_error(f.transform, truth, points[right]) for f in alone) > 10.0
+    settled = settle(_found(points, right, wrong), points, index, SETTINGS, [truth])
+    assert len(settled) == 2
+    assert _error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
+    assert _error(settled[1].transform, truth, points[right]) < 0.5
+    # every cell of the part goes to it again (reassign)
+    assert np.isin(np.flatnonzero(right), settled[1].members).mean() > 0.9
+
+
+def test_settle_needs_more_than_chance_from_a_rival(index, broken) -> None:
+    # the same rival, with a margin no gain can pass: the partition keeps its transform
+    points, right, truth, wrong = broken
+    strict = replace(SETTINGS, significance=1e4)
+    settled = settle(_found(points, right, wrong), points, index, strict, [truth])
+    assert min(_error(f.transform, truth, points[right]) for f in settled) > 10.0
+
+
+def test_a_rival_replaces_no_partition_it_explains_worse(index, broken) -> None:
+    # the left part's transform offered as a rival: no partition gains from taking it
+    points, right, truth, _ = broken
+    found = _found(points, right, truth)
+    settled = settle(found, points, index, SETTINGS, [RigidTransform(0.0, 0.0, 120.0)])
+    assert _error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
+    assert _error(settled[1].transform, truth, points[right]) < 0.5
