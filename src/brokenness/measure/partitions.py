@@ -340,30 +340,40 @@ def drop_redundant(
     the partitions at its rotation: the walls across the shift. Each round drops the
     partition with the fewest such cells if they are fewer than ``min_cells`` (the smallest
     partition of the stopping rule), and reassigns the cells. A partition turned against
-    every other is not judged here: its transform is its own evidence.
+    every other is evidence of its own by its transform, but not without cells: of its cells
+    that no other partition explains, more must agree under it than chance would make agree
+    (the stopping rule's ``n p0 + z sqrt(n p0 (1 - p0))``, without its smallest partition);
+    a placement of a part at a twin of its room, once the part is found in its true place,
+    explains nothing the true one does not. The partition with the least evidence (relative
+    to what its test asks) is dropped first.
     """
     threshold, min_cells = settings.threshold, settings.min_cells
+    p0 = index.chance_agreement(threshold)
     while len(found) > 1:
-        exclusive: list[int | None] = []
+        shortfall: list[float] = []  # evidence over what is asked: below 1 fails
         for j, f in enumerate(found):
+            pts = points[f.members]
+            own = index.occupied_agreement(f.transform.apply(pts), threshold)
             twins = [
                 g
                 for q, g in enumerate(found)
                 if q != j and abs(_turn_deg(f.transform, g.transform)) <= SAME_ROTATION_DEG
             ]
-            if not twins:
-                exclusive.append(None)
+            if twins:
+                for g in twins:
+                    own &= ~index.occupied_agreement(g.transform.apply(pts), threshold)
+                shortfall.append(np.count_nonzero(own) / min_cells)
                 continue
-            pts = points[f.members]
-            own = index.occupied_agreement(f.transform.apply(pts), threshold)
-            for g in twins:
-                own &= ~index.occupied_agreement(g.transform.apply(pts), threshold)
-            exclusive.append(int(np.count_nonzero(own)))
-        judged = [j for j, e in enumerate(exclusive) if e is not None]
-        if not judged:
-            break
-        worst = min(judged, key=lambda j: (exclusive[j], j))
-        if (exclusive[worst] or 0) >= min_cells:
+            unexplained = np.ones(pts.shape[0], dtype=bool)
+            for q, g in enumerate(found):
+                if q != j:
+                    unexplained &= ~index.occupied_agreement(g.transform.apply(pts), threshold)
+            chance, spread, _ = settings.needed(int(np.count_nonzero(unexplained)), p0)
+            asked = chance + settings.significance * spread
+            k = int(np.count_nonzero(own & unexplained))
+            shortfall.append(math.inf if k > 0 and asked == 0 else k / max(asked, 1e-12))
+        worst = min(range(len(found)), key=lambda j: (shortfall[j], j))
+        if shortfall[worst] >= 1.0:
             break
         kept = [f for j, f in enumerate(found) if j != worst]
         found = reassign(kept, points, index, threshold, min_cells) if len(kept) > 1 else kept
