@@ -9,6 +9,9 @@ chance could.
 
 Building 31 (a real map, 520 x 520 cells): the part right of column 360 turned by 180
 degrees about its centre, and its partition placed 120 cells off its true place.
+
+Once the part is found in its true place, a placement at a turned twin kept beside it
+explains no cell that the true one does not: :func:`drop_redundant` drops it.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from _breaking import SETTINGS, move_about
 
 from brokenness import OccupancyMap, RigidTransform, load_map
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.partitions import Found
+from brokenness.measure.partitions import Found, drop_redundant
 from brokenness.measure.settle import settle
 
 DATA = Path(__file__).parent / "data"
@@ -96,3 +99,25 @@ def test_a_rival_replaces_no_partition_it_explains_worse(index, broken) -> None:
     settled = settle(found, points, index, SETTINGS, [RigidTransform(0.0, 0.0, 120.0)])
     assert _error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
     assert _error(settled[1].transform, truth, points[right]) < 0.5
+
+
+def test_a_turned_placement_that_explains_nothing_of_its_own_is_dropped(reference, index) -> None:
+    # the part found in its true place (the first partition explains every cell), and a
+    # placement of its cells at a turned twin kept beside it: no cell is its own evidence
+    points = cell_points(reference.occupied)
+    right = points[:, 0] >= CUT
+    twin = move_about(tuple(points[right].mean(axis=0)), 90.0, (0.0, 0.0))
+    found = [
+        Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
+        Found(twin, np.flatnonzero(right), 1.0, 0.0),
+    ]
+    kept = drop_redundant(found, points, index, SETTINGS)
+    assert len(kept) == 1
+    assert kept[0].transform is found[0].transform
+
+
+def test_a_turned_partition_with_cells_of_its_own_is_kept(index, broken) -> None:
+    points, right, truth, _ = broken
+    found = _found(points, right, truth)
+    kept = drop_redundant(found, points, index, SETTINGS)
+    assert [f.transform for f in kept] == [f.transform for f in found]

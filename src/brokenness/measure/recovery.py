@@ -291,6 +291,7 @@ def recover(
     registrar: Registrar,
     reference: Any,
     settings: Settings,
+    relocate: bool = False,
 ) -> tuple[list[Found], list[RigidTransform]]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
@@ -311,6 +312,11 @@ def recover(
         reference.
     settings : Settings
         As for the recursion; each round asks for twice its ``max_candidates`` hypotheses.
+    relocate : bool, optional
+        Also register each partition's own cells alone, once the new partitions are found,
+        and return the best hypothesis that puts them elsewhere than every partition does as
+        a rival (a part at a twin of its room: its own cells give its true place among their
+        hypotheses).
 
     Returns
     -------
@@ -369,6 +375,13 @@ def recover(
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
+    if relocate:
+        for f in found:
+            if exhausted(registrar):
+                break
+            elsewhere = search.elsewhere(found, f.members)
+            if elsewhere is not None:
+                rivals.append(elsewhere)
     return found, rivals
 
 
@@ -457,6 +470,35 @@ class _Search:
         if merge_target(found, pts[members], self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0), None
+
+    def elsewhere(self, found: list[Found], members: NDArray[np.intp]) -> RigidTransform | None:
+        """The best hypothesis of ``members`` registered alone that puts them elsewhere than
+        every partition's transform does (``None`` if there is none)."""
+        settings = self.settings
+        if members.size < settings.min_cells:
+            return None
+        pts = self.points
+        cells = np.zeros(pts.shape[0], dtype=bool)
+        cells[members] = True
+        states = moving_remainder(
+            self.working,
+            pts[:, 1].astype(np.intp),
+            pts[:, 0].astype(np.intp),
+            cells,
+            settings.uses_free,
+            settings.drop_isolated,
+            settings.as_cells,
+        )
+        if occupied_count(states) < settings.min_cells:
+            return None
+        candidates = _new_ones(
+            candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
+            found,
+            pts[members],
+            settings.loose,
+        )
+        best = best_hypothesis(candidates, pts[members], self.index, settings.threshold)
+        return None if best is None else best[0]
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least

@@ -297,7 +297,7 @@ def _compute(
     whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    found, rivals = recover(found, points, working, index, thorough, whole, settings)
+    found, rivals = recover(found, points, working, index, thorough, whole, settings, True)
     found = _tested(found, points, working, index, settings, rivals)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
         again, rivals = recover(found, points, working, index, thorough, whole, settings)

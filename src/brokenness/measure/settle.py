@@ -156,7 +156,11 @@ def settle(
         candidates += [t] * len(transforms)
     if not candidates:
         return found
-    offered = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in candidates])
+    rows = [index.occupied_agreement(t.apply(walls), threshold) for t in candidates[:local]]
+    for t in rivals:  # one lookup a rival, its row offered to every partition
+        row = index.occupied_agreement(t.apply(walls), threshold)
+        rows += [row] * len(transforms)
+    offered = np.stack(rows)
     seeds_arr = np.asarray(seeds)
     p0 = index.chance_agreement(threshold)
     added: list[Found] = []
