@@ -38,7 +38,10 @@ A best hypothesis that fails only the count of step 4 is returned as a *rival*: 
 partition sits at a wrong place that fits its own cells (a twin of its room), the cells of
 its part that the wrong place leaves are suspects, too few for a new partition, and their
 hypothesis is the part's true transform; :func:`~brokenness.measure.settle.settle` offers it
-to every partition as a replacement. After the settle step, the recovery runs again while it
+to every partition as a replacement. In the first round (``relocate``) each partition's own
+cells are also registered alone, and the best hypothesis that puts them elsewhere than every
+partition does is a rival too: registered alone, a part's cells give their true place among
+their hypotheses, though the place it was found at fits them too. After the settle step, the recovery runs again while it
 finds new partitions (the recursion's ``RECOVERY_ROUNDS``): settled transforms leave clearer
 suspects.
 
