@@ -130,3 +130,16 @@ def test_batched_gauss_newton_equals_one_at_a_time():
         )
     assert np.array_equal(together[2], starts[2])
     assert _refine.refine_rigid_many(field, pts, [], **kwargs) == []
+
+
+def test_edge_points_are_the_outline_cells_in_row_order_across_bands():
+    # found band by band (512 rows): the same cells, in the same order, as on the whole grid
+    rng = np.random.default_rng(5)
+    occupied = rng.random((1300, 40)) < 0.4
+    occupied[511:514, :] = True  # a thick wall across a band boundary: its inside is no outline
+    rows, cols = np.nonzero(_refine.edges(occupied))
+    points = _refine.edge_points(occupied)
+    assert points.dtype == np.int32
+    np.testing.assert_array_equal(points, np.column_stack([cols, rows]))
+    assert not _refine.edges(occupied)[512, 1:-1].any()
+    assert _refine.edge_points(np.zeros((3, 3), bool)).shape == (0, 2)

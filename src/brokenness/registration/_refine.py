@@ -23,6 +23,7 @@ from ..masking.distance import sample_at
 __all__ = [
     "distance_field",
     "edge_distance_field",
+    "edge_points",
     "edges",
     "inlier_count",
     "inlier_counts",
@@ -48,6 +49,32 @@ def _edges_u8(occupied: NDArray[np.bool_]) -> NDArray[np.uint8]:
     inner = cv2.erode(occ, cross, borderType=cv2.BORDER_CONSTANT, borderValue=0)
     # the erosion lies inside the cells (the cross holds its centre): cells less it, in place
     return np.asarray(cv2.subtract(occ, inner, dst=inner), dtype=np.uint8)
+
+
+#: Rows of the bands in which :func:`edge_points` finds the outline.
+_BAND_ROWS = 512
+
+
+def edge_points(occupied: NDArray[np.bool_]) -> NDArray[np.int32]:
+    """``(x, y)`` of the cells of :func:`edges`, row by row, shape (N, 2).
+
+    Found in bands of rows (each with the row above and below it, which its outline depends
+    on): the temporaries are a band's, not the grid's.
+    """
+    h = occupied.shape[0]
+    parts = []
+    for a in range(0, h, _BAND_ROWS):
+        b = min(a + _BAND_ROWS, h)
+        lo, hi = max(a - 1, 0), min(b + 1, h)
+        outline = _edges_u8(occupied[lo:hi])[a - lo : b - lo]  # whole rows: contiguous
+        found = cv2.findNonZero(outline)
+        if found is not None:
+            xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
+            xy[:, 1] += a
+            parts.append(xy)
+    if not parts:
+        return np.zeros((0, 2), dtype=np.int32)
+    return np.concatenate(parts) if len(parts) > 1 else parts[0]
 
 
 def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:
