@@ -51,30 +51,29 @@ def _edges_u8(occupied: NDArray[np.bool_]) -> NDArray[np.uint8]:
     return np.asarray(cv2.subtract(occ, inner, dst=inner), dtype=np.uint8)
 
 
-#: Rows of the bands in which :func:`edge_points` finds the outline.
-_BAND_ROWS = 512
-
-
 def edge_points(occupied: NDArray[np.bool_]) -> NDArray[np.int32]:
     """``(x, y)`` of the cells of :func:`edges`, row by row, shape (N, 2).
 
-    Found in bands of rows (each with the row above and below it, which its outline depends
-    on): the temporaries are a band's, not the grid's.
+    The occupied cells are listed once (one fast scan) and each is tested by looking up its
+    four neighbours (cells off the grid are not occupied, as for :func:`edges`): the cost
+    beyond the scan follows the cells, and there is no temporary of the grid's size.
     """
-    h = occupied.shape[0]
-    parts = []
-    for a in range(0, h, _BAND_ROWS):
-        b = min(a + _BAND_ROWS, h)
-        lo, hi = max(a - 1, 0), min(b + 1, h)
-        outline = _edges_u8(occupied[lo:hi])[a - lo : b - lo]  # whole rows: contiguous
-        found = cv2.findNonZero(outline)
-        if found is not None:
-            xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
-            xy[:, 1] += a
-            parts.append(xy)
-    if not parts:
+    occ = np.ascontiguousarray(occupied, dtype=np.bool_)
+    h, w = occ.shape
+    found = cv2.findNonZero(occ.view(np.uint8))
+    if found is None:
         return np.zeros((0, 2), dtype=np.int32)
-    return np.concatenate(parts) if len(parts) > 1 else parts[0]
+    xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
+    x, y = xy[:, 0], xy[:, 1]
+    flat = occ.reshape(-1)
+    at = y.astype(np.intp) * w + x
+    last = flat.size - 1
+    # a cell on the grid's edge has a neighbour off it; the clipped look-ups of such cells
+    # are not used
+    inner = (x > 0) & (x < w - 1) & (y > 0) & (y < h - 1)
+    inner &= flat[np.maximum(at - 1, 0)] & flat[np.minimum(at + 1, last)]
+    inner &= flat[np.maximum(at - w, 0)] & flat[np.minimum(at + w, last)]
+    return xy[~inner]
 
 
 def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:
