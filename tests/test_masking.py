@@ -31,6 +31,24 @@ def test_manhattan_distance_is_exact():
     assert np.isinf(manhattan_distance_map(np.zeros((3, 3), bool))).all()
 
 
+def test_manhattan_distance_outside_the_cells_box_is_exact():
+    # the transform runs on the box of the cells; the margins around it are filled in
+    rng = np.random.default_rng(7)
+    for shape, box in [
+        ((60, 80), (20, 31, 45, 52)),
+        ((30, 30), (0, 5, 25, 30)),
+        ((9, 70), (4, 5, 3, 4)),
+    ]:
+        mask = np.zeros(shape, bool)
+        r0, r1, c0, c1 = box
+        mask[r0:r1, c0:c1] = rng.random((r1 - r0, c1 - c0)) < 0.2
+        mask[r0, c0] = mask[r1 - 1, c1 - 1] = True
+        expected = ndi.distance_transform_cdt(~mask, metric="taxicab")
+        got = manhattan_distance_map(mask)
+        assert got.dtype == np.float32 and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, expected)
+
+
 def test_lookup_distance_rounds_and_is_inf_outside():
     d = manhattan_distance_map(np.eye(5, dtype=bool))
     out = lookup_distance(d, [[0.4, 0.4], [2.0, 0.0], [-1.0, 0.0], [4.6, 0.0]])

@@ -130,3 +130,18 @@ def test_batched_gauss_newton_equals_one_at_a_time():
         )
     assert np.array_equal(together[2], starts[2])
     assert _refine.refine_rigid_many(field, pts, [], **kwargs) == []
+
+
+def test_edge_points_are_the_outline_cells_in_row_order():
+    # found from the cells' neighbours: the cells of edges(), in the same (row-major) order
+    rng = np.random.default_rng(5)
+    for shape, share in [((1300, 40), 0.4), ((1, 9), 0.7), ((7, 1), 0.7), ((60, 70), 0.9)]:
+        occupied = rng.random(shape) < share
+        rows, cols = np.nonzero(_refine.edges(occupied))
+        points = _refine.edge_points(occupied)
+        assert points.dtype == np.int32
+        np.testing.assert_array_equal(points, np.column_stack([cols, rows]))
+    wall = np.zeros((9, 9), bool)
+    wall[2:7, 1:8] = True  # a thick wall: its inside is no outline
+    assert not (_refine.edge_points(wall)[:, None] == [[4, 4]]).all(axis=2).any()
+    assert _refine.edge_points(np.zeros((3, 3), bool)).shape == (0, 2)

@@ -153,9 +153,11 @@ def contradiction(
     -------
     Contradiction
     """
-    known = index.known
+    # the reference's known cells are looked up in its states (a mask of them would add a
+    # byte a cell to the peak while the owners' distance transform below runs)
+    ref_states = index.reference.states
     occupied_ref = index.occupied
-    n_known = int(np.count_nonzero(known))
+    n_known = _count_known(ref_states)
     chance = float(np.count_nonzero(occupied_ref)) / n_known if n_known else 0.0
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
@@ -201,17 +203,17 @@ def contradiction(
     block_owner = np.full(coarse_shape, -1, dtype=np.int16)
     block_owner[py[is_source] // 2, px[is_source] // 2] = owner[is_source]
     is_block = block_owner >= 0
-    _, nearest = cv2.distanceTransformWithLabels(
+    nearest = cv2.distanceTransformWithLabels(
         np.logical_not(is_block).view(np.uint8),
         cv2.DIST_L2,
         cv2.DIST_MASK_5,
         labelType=cv2.DIST_LABEL_PIXEL,
-    )  # labels number the source blocks 1.. row-major, as boolean indexing lists them
+    )[1]  # labels number the source blocks 1.. row-major, as boolean indexing lists them
     owners_of_blocks = block_owner[is_block]
     del block_owner, is_block
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
-    h, w = known.shape
+    h, w = ref_states.shape
     for start in range(0, clear.size, _CHUNK):  # bounded temporaries, whatever the map
         rows, cols = np.divmod(clear[start : start + _CHUNK], sub_width)
         rows *= stride
@@ -226,7 +228,7 @@ def contradiction(
             x, y = moved[:, 0], moved[:, 1]
             inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
             x, y = x[inside], y[inside]
-            on_known = known[y, x]
+            on_known = ref_states[y, x] != UNKNOWN
             counted[j] += int(np.count_nonzero(on_known))
             contradicting[j] += int(np.count_nonzero(on_known & occupied_ref[y, x]))
     return Contradiction(counted, contradicting, chance, stride)
@@ -326,6 +328,14 @@ def wall_contradiction(
         counted += int(np.count_nonzero(landed != UNKNOWN))
         contradicting += int(np.count_nonzero((landed == FREE) & (distance[y, x] > limit)))
     return WallContradiction(counted, contradicting, chance)
+
+
+def _count_known(states: NDArray[np.int8]) -> int:
+    """The known cells of ``states``, counted in bands of rows (no mask of the grid)."""
+    return sum(
+        int(np.count_nonzero(states[r0 : r0 + _BAND_ROWS] != UNKNOWN))
+        for r0 in range(0, states.shape[0], _BAND_ROWS)
+    )
 
 
 def _clear_free_share(

@@ -23,6 +23,7 @@ from ..masking.distance import sample_at
 __all__ = [
     "distance_field",
     "edge_distance_field",
+    "edge_points",
     "edges",
     "inlier_count",
     "inlier_counts",
@@ -48,6 +49,31 @@ def _edges_u8(occupied: NDArray[np.bool_]) -> NDArray[np.uint8]:
     inner = cv2.erode(occ, cross, borderType=cv2.BORDER_CONSTANT, borderValue=0)
     # the erosion lies inside the cells (the cross holds its centre): cells less it, in place
     return np.asarray(cv2.subtract(occ, inner, dst=inner), dtype=np.uint8)
+
+
+def edge_points(occupied: NDArray[np.bool_]) -> NDArray[np.int32]:
+    """``(x, y)`` of the cells of :func:`edges`, row by row, shape (N, 2).
+
+    The occupied cells are listed once (one fast scan) and each is tested by looking up its
+    four neighbours (cells off the grid are not occupied, as for :func:`edges`): the cost
+    beyond the scan follows the cells, and there is no temporary of the grid's size.
+    """
+    occ = np.ascontiguousarray(occupied, dtype=np.bool_)
+    h, w = occ.shape
+    found = cv2.findNonZero(occ.view(np.uint8))
+    if found is None:
+        return np.zeros((0, 2), dtype=np.int32)
+    xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
+    x, y = xy[:, 0], xy[:, 1]
+    flat = occ.reshape(-1)
+    at = y.astype(np.intp) * w + x
+    last = flat.size - 1
+    # a cell on the grid's edge has a neighbour off it; the clipped look-ups of such cells
+    # are not used
+    inner = (x > 0) & (x < w - 1) & (y > 0) & (y < h - 1)
+    inner &= flat[np.maximum(at - 1, 0)] & flat[np.minimum(at + 1, last)]
+    inner &= flat[np.maximum(at - w, 0)] & flat[np.minimum(at + w, last)]
+    return xy[~inner]
 
 
 def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:

@@ -56,9 +56,10 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     array is zero-padded up to a multiple of ``factor``), so its centre is the fine point
     ``factor*X + (factor - 1)/2``.
     """
-    src = np.ascontiguousarray(occupied)
+    # a view of a larger grid is pooled as it is (no copy of the grid: the row blocks are
+    # views of it too)
     img: NDArray[np.uint8] = (
-        src.view(np.uint8) if src.dtype == np.bool_ else (src != 0).view(np.uint8)
+        occupied.view(np.uint8) if occupied.dtype == np.bool_ else (occupied != 0).view(np.uint8)
     )
     if factor <= 1:
         return img.astype(np.float32)

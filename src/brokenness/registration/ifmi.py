@@ -482,8 +482,7 @@ class IFMIRegistrar:
         extent = max(r1 - r0, c1 - c0)
         factor = max(ref.factor, math.ceil(extent / self.max_size))
         rot_factor = max(ref.rotation_factor, math.ceil(extent / self.rotation_size))
-        found = cv2.findNonZero(_refine.edges(crop).view(np.uint8))
-        xy = found.reshape(-1, 2)
+        xy = _refine.edge_points(crop)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
             xy = xy[pick]

@@ -34,15 +34,22 @@ _ENC_UNKNOWN, _ENC_FREE, _ENC_OCCUPIED = 0, 1, 2
 
 
 def _encode(states: NDArray[np.int8]) -> NDArray[np.uint8]:
-    enc = np.zeros(states.shape, dtype=np.uint8)
-    enc[states == FREE] = _ENC_FREE
-    enc[states == OCCUPIED] = _ENC_OCCUPIED
-    return enc
+    """States as 0 (unknown or anything else), 1 (free), 2 (occupied): one table lookup, no
+    temporary grid."""
+    return np.asarray(cv2.LUT(np.ascontiguousarray(states).view(np.uint8), _ENCODE))
 
 
 def _decode(enc: NDArray[np.uint8]) -> NDArray[np.int8]:
-    # 0 -> -1 (unknown), 1 -> 0 (free), 2 -> 1 (occupied)
-    return enc.astype(np.int8) - np.int8(1)
+    """0 -> -1 (unknown), 1 -> 0 (free), 2 -> 1 (occupied), in place (``enc`` becomes the
+    states; any other byte ``b`` becomes ``int8(b) - 1``, as numpy's wrapping subtraction)."""
+    return np.asarray(cv2.LUT(enc, _DECODE, dst=enc)).view(np.int8)
+
+
+#: Lookup tables of :func:`_encode` (by the state's byte) and :func:`_decode`.
+_ENCODE = np.zeros(256, dtype=np.uint8)
+_ENCODE[np.uint8(FREE)] = _ENC_FREE
+_ENCODE[np.uint8(OCCUPIED)] = _ENC_OCCUPIED
+_DECODE = (np.arange(256, dtype=np.uint8).view(np.int8) - np.int8(1)).view(np.uint8)
 
 
 def _warp(enc: NDArray[np.uint8], transform: RigidTransform, shape: tuple[int, int]) -> NDArray:
@@ -105,10 +112,10 @@ def partition_owners(labels: NDArray[np.integer]) -> NDArray[np.int16]:
         return np.full(labels.shape, -1, dtype=np.int16)
     # cv2 labels every zero pixel of ``src`` with its own number (DIST_LABEL_PIXEL) and every
     # other pixel with the number of its nearest zero pixel; translate numbers to partitions.
-    src = np.where(inside, 0, 1).astype(np.uint8)
-    _, nearest = cv2.distanceTransformWithLabels(
-        src, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
-    )
+    src = np.logical_not(inside).view(np.uint8)  # 0 on the partition cells, 1 elsewhere
+    labelled = cv2.distanceTransformWithLabels(src, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
+    nearest = labelled[1]
+    del labelled, src  # the distances are not needed: dropped at once
     flat = np.flatnonzero(inside.ravel())
     lut = np.full(int(nearest.max()) + 1, -1, dtype=np.int16)
     lut[nearest.ravel()[flat]] = labels.ravel()[flat]
