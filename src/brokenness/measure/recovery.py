@@ -41,9 +41,9 @@ hypothesis is the part's true transform; :func:`~brokenness.measure.settle.settl
 to every partition as a replacement. In the first round (``relocate``) each partition's own
 cells are also registered alone, and the best hypothesis that puts them elsewhere than every
 partition does is a rival too: registered alone, a part's cells give their true place among
-their hypotheses, though the place it was found at fits them too. After the settle step, the recovery runs again while it
-finds new partitions (the recursion's ``RECOVERY_ROUNDS``): settled transforms leave clearer
-suspects.
+their hypotheses, though the place it was found at fits them too. After the settle step,
+the recovery runs again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
+settled transforms leave clearer suspects.
 
 On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
 :func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 145 maps

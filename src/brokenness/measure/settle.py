@@ -208,6 +208,7 @@ def settle(
         transforms.append(candidates[b])
         agree = np.vstack([agree, offered[b][None]])
         added.append(Found(candidates[b], np.zeros(0, np.intp), confidence, 0.0))
+        alive = np.append(alive, True)
         seeds_arr[b] = -1
     if (
         not added
@@ -217,9 +218,10 @@ def settle(
         return found
     moved = [
         Found(t, f.members, f.confidence, f.seconds)
-        for t, f, kept in zip(transforms[: len(found)], found, alive, strict=True)
+        for t, f, kept in zip(transforms[: len(found)], found, alive[: len(found)], strict=True)
         if kept
     ]
+    added = [a for a, kept in zip(added, alive[len(found) :], strict=True) if kept]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
         return settle(settled, points, index, settings, rivals)
