@@ -115,9 +115,9 @@ def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
     seen = []
     real = recursion.recover
 
-    def spy(found, points, working, index, registrar, reference, settings):
+    def spy(found, points, working, index, registrar, reference, settings, *more):
         seen.append(registrar)
-        return real(found, points, working, index, registrar, reference, settings)
+        return real(found, points, working, index, registrar, reference, settings, *more)
 
     monkeypatch.setattr(recursion, "recover", spy)
     broken, _ = _case(depot, 1)

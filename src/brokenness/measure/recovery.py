@@ -378,7 +378,7 @@ def recover(
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
-    if relocate:
+    if relocate and len(found) > 1:  # a lone partition's cells: what the first step registered
         for f in found:
             if exhausted(registrar):
                 break
