@@ -40,12 +40,10 @@ mostly holds one. So :func:`settle`:
    partition too: a part registered where a twin of its room is (turned by 90 or 180
    degrees, or far off) fits its own cells there, so no refit moves it, but its true place
    leaves a few of its cells unexplained, and the recovery finds the true transform among
-   them. A rival is judged by the same count with the cost of a partition that the stopping
-   rule implies (cells explained, less ``min_cells`` per partition: a part held by two wrong
-   placements gains from the rival only once the other is dropped), so a partition that
-   had at least ``min_cells`` cells no other explains and has fewer with the rival in is
-   dropped; and its gain must exceed what chance could give on the cells the two contest
-   (the shift search's margin, below);
+   them. A rival is judged by the same count; a partition that had at least ``min_cells``
+   cells no other explains and has fewer with the rival in is dropped (a part may be held
+   by two wrong placements), its cells counted as lost; and the gain must exceed what chance
+   could give on the cells the two contest (the shift search's margin, below);
 4. when no replacement adds a cell, *splits* a partition in two if its refits say it holds
    two parts: the compromise of two parts at one rotation, shifted against each other (a
    pure-shift bump), is refitted to one part on that part's tiles and to the other on the
@@ -239,14 +237,15 @@ def _rival_gain(
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
     gains, and the partitions it leaves redundant (step 3).
 
-    The score is the one the recursion maximises, with the cost of a partition that its
-    stopping rule implies: cells explained, less ``min_cells`` per partition. A part at a
-    wrong place may be held by two partitions, each explaining half of its cells there, so
-    the rival can gain cells only with the other dropped: a partition that had at least
-    ``min_cells`` cells no other explains and has fewer once the rival is in is dropped,
-    which gains ``min_cells`` less the cells it still explained alone. A rival is not a refit
-    of the partition's own cells, so the gain must also exceed what chance could give on the
-    cells the two contest (the shift search's margin); else ``0``.
+    The gain is the count the recursion maximises: cells explained by some partition. A
+    partition that had at least ``min_cells`` cells no other explains, and has fewer once
+    the rival is in, is left without evidence of its own and is dropped (a part at a wrong
+    place may be held by two partitions, each explaining half of its cells there); the
+    cells it still explained alone count as lost. A rival is not a refit of the partition's
+    own cells, so the gain must exceed what chance could give on the cells the two contest
+    (the shift search's margin); else ``0``. (A version that also credited each dropped
+    partition with the smallest partition's cells, a cost per partition, replaced two true
+    small parts by one compromise that explained fewer cells.)
     """
     after = covered - agree[j] + offered
     others = (covered - agree[j]) > 0
@@ -257,11 +256,7 @@ def _rival_gain(
     redundant = np.flatnonzero(emptied)
     if redundant.size:
         after = after - agree[redundant].sum(axis=0)
-    gain = (
-        int(np.count_nonzero(after))
-        - int(np.count_nonzero(covered))
-        + settings.min_cells * int(redundant.size)
-    )
+    gain = int(np.count_nonzero(after)) - int(np.count_nonzero(covered))
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
     return (gain, redundant) if gain > margin else (0, _NO_CELLS)
