@@ -244,8 +244,8 @@ def _rival_gain(
     cells it still explained alone count as lost. A rival is not a refit of the partition's
     own cells, so the gain must exceed what chance could give on the cells the two contest
     (the shift search's margin); else ``0``. (A version that also credited each dropped
-    partition with the smallest partition's cells, a cost per partition, replaced two true
-    small parts by one compromise that explained fewer cells.)
+    partition with the smallest partition's cells, a cost per partition, replaced two small
+    partitions by one transform that explained fewer cells: a degree one short.)
     """
     after = covered - agree[j] + offered
     others = (covered - agree[j]) > 0
