@@ -7,13 +7,24 @@ partition is exact, because we made the motion ourselves.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from brokenness import OccupancyMap, RigidTransform
+from brokenness import OccupancyMap, RigidTransform, load_map
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.measure.options import Settings
+
+
+def building_31_corner(side: int = 520) -> OccupancyMap:
+    """The bundled MIT building 31 map's top-left ``side`` x ``side`` cells (unknown where the
+    map is smaller), as a reference in its own frame."""
+    m = load_map(Path(__file__).parent / "data" / "building_31.yaml")
+    states = np.full((side, side), UNKNOWN, np.int8)
+    crop = m.states[:side, :side]
+    states[: crop.shape[0], : crop.shape[1]] = crop
+    return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
 
 
 def move_about(

@@ -17,28 +17,22 @@ explains no cell that the true one does not: :func:`drop_redundant` drops it.
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
-from _breaking import SETTINGS, move_about
+from _breaking import SETTINGS, building_31_corner, move_about
 
-from brokenness import OccupancyMap, RigidTransform, load_map
+from brokenness import OccupancyMap, RigidTransform
 from brokenness.masking import ReferenceIndex, cell_points
 from brokenness.measure.partitions import Found, drop_redundant
 from brokenness.measure.settle import settle
 
-DATA = Path(__file__).parent / "data"
 CUT = 360
 
 
 @pytest.fixture(scope="module")
 def reference() -> OccupancyMap:
-    m = load_map(DATA / "building_31.yaml")
-    states = np.full((520, 520), -1, np.int8)
-    crop = m.states[:520, :520]
-    states[: crop.shape[0], : crop.shape[1]] = crop
-    return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
+    return building_31_corner(520)
 
 
 @pytest.fixture(scope="module")

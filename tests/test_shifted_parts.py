@@ -15,29 +15,22 @@ partitions all the same: the walls across the shift agree under one transform on
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-from _breaking import SETTINGS
+from _breaking import SETTINGS, building_31_corner
 
-from brokenness import OccupancyMap, RigidTransform, load_map
+from brokenness import OccupancyMap, RigidTransform
 from brokenness.masking import ReferenceIndex, cell_points
 from brokenness.measure.partitions import Found, consolidate
 from brokenness.measure.settle import settle
 
-DATA = Path(__file__).parent / "data"
 SHIFT = (0.0, 12.0)
 CUT = 360
 
 
 @pytest.fixture(scope="module")
 def reference() -> OccupancyMap:
-    m = load_map(DATA / "building_31.yaml")
-    states = np.full((520, 520), -1, np.int8)
-    crop = m.states[:520, :520]
-    states[: crop.shape[0], : crop.shape[1]] = crop
-    return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
+    return building_31_corner(520)
 
 
 @pytest.fixture(scope="module")
