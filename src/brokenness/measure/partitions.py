@@ -371,7 +371,7 @@ def drop_redundant(
             chance, spread, _ = settings.needed(int(np.count_nonzero(unexplained)), p0)
             asked = chance + settings.significance * spread
             k = int(np.count_nonzero(own & unexplained))
-            shortfall.append(math.inf if k > 0 and asked == 0 else k / max(asked, 1e-12))
+            shortfall.append(k / asked if asked > 0 else (math.inf if k else 0.0))
         worst = min(range(len(found)), key=lambda j: (shortfall[j], j))
         if shortfall[worst] >= 1.0:
             break

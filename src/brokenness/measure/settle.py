@@ -168,6 +168,7 @@ def settle(
         covered = agree.sum(axis=0)
         explained = int(np.count_nonzero(covered))
         best_gain, best, emptied = 0, None, _NO_CELLS
+        alone = np.count_nonzero(agree & (covered == 1), axis=1)  # cells only each explains
         for j in range(len(transforms)):
             mine = np.flatnonzero(seeds_arr == j)
             if mine.size == 0:
@@ -180,7 +181,7 @@ def settle(
                 if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
-                gain, redundant = _rival_gain(j, offered[c], agree, covered, p0, settings)
+                gain, redundant = _rival_gain(j, offered[c], agree, covered, alone, p0, settings)
                 if gain > best_gain:
                     best_gain, best, emptied = gain, (j, int(c)), redundant
         if best is not None:
@@ -231,11 +232,14 @@ def _rival_gain(
     offered: NDArray[np.bool_],
     agree: NDArray[np.bool_],
     covered: NDArray[np.int64],
+    alone: NDArray[np.intp],
     p0: float,
     settings: Settings,
 ) -> tuple[int, NDArray[np.intp]]:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
-    gains, and the partitions it leaves redundant (step 3).
+    gains, and the partitions it leaves redundant (step 3). ``covered`` counts the
+    partitions that explain each cell, and ``alone`` is, per partition, its cells no other
+    explains.
 
     The gain is the count the recursion maximises: cells explained by some partition. A
     partition that had at least ``min_cells`` cells no other explains, and has fewer once
@@ -249,9 +253,8 @@ def _rival_gain(
     """
     after = covered - agree[j] + offered
     others = (covered - agree[j]) > 0
-    alone_before = np.count_nonzero(agree & (covered == 1), axis=1)
     alone_after = np.count_nonzero(agree & (after == 1), axis=1)
-    emptied = (alone_before >= settings.min_cells) & (alone_after < settings.min_cells)
+    emptied = (alone >= settings.min_cells) & (alone_after < settings.min_cells)
     emptied[j] = False
     redundant = np.flatnonzero(emptied)
     if redundant.size:
