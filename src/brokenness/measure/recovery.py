@@ -413,25 +413,8 @@ class _Search:
         if n < settings.min_cells or exhausted(self.registrar):
             return None, None  # too few cells, or the registration's budget is spent
         pts = self.points
-        rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
-        states = moving_remainder(
-            self.working,
-            rows,
-            cols,
-            cells,
-            settings.uses_free,
-            settings.drop_isolated,
-            settings.as_cells,
-        )
-        if occupied_count(states) < settings.min_cells:
-            return None, None
         left = np.flatnonzero(cells)
-        candidates = _new_ones(
-            candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
-            found,
-            pts[left],
-            settings.loose,
-        )
+        candidates = self._new_hypotheses(found, cells)
         if not candidates:
             return None, None
         # the cells a hypothesis explains count only where the cells around agree under it
@@ -477,12 +460,22 @@ class _Search:
     def elsewhere(self, found: list[Found], members: NDArray[np.intp]) -> RigidTransform | None:
         """The best hypothesis of ``members`` registered alone that puts them elsewhere than
         every partition's transform does (``None`` if there is none)."""
-        settings = self.settings
-        if members.size < settings.min_cells:
+        if members.size < self.settings.min_cells:
             return None
-        pts = self.points
-        cells = np.zeros(pts.shape[0], dtype=bool)
+        cells = np.zeros(self.points.shape[0], dtype=bool)
         cells[members] = True
+        candidates = self._new_hypotheses(found, cells)
+        if not candidates:
+            return None
+        best = best_hypothesis(
+            candidates, self.points[members], self.index, self.settings.threshold
+        )
+        return None if best is None else best[0]
+
+    def _new_hypotheses(self, found: list[Found], cells: NDArray[np.bool_]) -> list[Candidate]:
+        """The hypotheses of ``cells`` registered alone (twice ``max_candidates``) that are not
+        a partition already found; none if too few of them are left to register."""
+        settings, pts = self.settings, self.points
         states = moving_remainder(
             self.working,
             pts[:, 1].astype(np.intp),
@@ -493,15 +486,13 @@ class _Search:
             settings.as_cells,
         )
         if occupied_count(states) < settings.min_cells:
-            return None
-        candidates = _new_ones(
+            return []
+        return _new_ones(
             candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
             found,
-            pts[members],
+            pts[cells],
             settings.loose,
         )
-        best = best_hypothesis(candidates, pts[members], self.index, settings.threshold)
-        return None if best is None else best[0]
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
