@@ -140,3 +140,39 @@ def test_consolidate_joins_one_rigid_piece_and_keeps_two_apart():
     kept = consolidate(apart, broken, index, SETTINGS)
     assert len(kept) == 2
     assert sorted(f.members.size for f in kept) == sorted([top.size, bottom.size])
+
+
+@pytest.mark.parametrize("shift", [(0.0, 12.0), (12.0, 0.0)])
+def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
+    """A pure-shift bump: the right part of building 31 (a fifth of its walls) shifted by
+    12 cells. The partition of the left part's transform holds every cell that agrees
+    under it, among them the right part's walls along the shift (a third to a half of
+    them), so few of the right part's cells are suspects. The cells its true transform
+    would *take* (coherent, and their neighbourhood agreeing more under it than under
+    their partition's) are the right part's, nearly all of them, and hardly any of the
+    left part's; the left part's own transform takes nothing, and a wrong one little."""
+    from _breaking import building_31_corner
+
+    ref = building_31_corner(520)
+    index = ReferenceIndex.build(ref)
+    points = cell_points(ref.occupied)
+    right = points[:, 0] >= 360
+    moved = points.copy()
+    moved[right] += shift
+    left_t, right_t = RigidTransform(), RigidTransform(0.0, -shift[0], -shift[1])
+    agree = index.occupied_agreement(left_t.apply(moved), SETTINGS.threshold)
+    assert 0.3 < np.count_nonzero(agree & right) / np.count_nonzero(right) < 0.6
+    found = [Found(left_t, np.flatnonzero(agree), 1.0, 0.0)]
+    owner = recovery.owners(found, moved.shape[0])
+    counts = recovery._owner_counts(found, owner, moved, index, SETTINGS.threshold)
+    around = recovery._occupied_around(moved, (540, 540), recovery.SUPPORT_RADIUS)
+
+    def taken(t: RigidTransform) -> np.ndarray:
+        return recovery.taken_cells(t, owner, counts, moved, index, SETTINGS.threshold, around)
+
+    by_truth = taken(right_t)
+    assert np.count_nonzero(by_truth & right) > 0.9 * np.count_nonzero(right)
+    assert np.count_nonzero(by_truth & ~right) < 0.01 * np.count_nonzero(~right)
+    assert not taken(left_t).any()
+    wrong = RigidTransform(np.radians(37.0), 40.0, -25.0)
+    assert np.count_nonzero(taken(wrong)) < 0.1 * np.count_nonzero(by_truth)

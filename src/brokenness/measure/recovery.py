@@ -32,7 +32,16 @@ the recursion:
    and the smallest partition), it is not explained by a partition already found
    (:func:`~brokenness.measure.partitions.merge_target`), and it keeps at least the
    smallest partition's cells when every cell goes to its best partition again;
-5. repeats until nothing new is found (or ``max_partitions`` is reached).
+5. if no hypothesis passes step 4's count, counts the best hypotheses of step 3 again over
+   the whole map (:meth:`_Search.taken_partition`): the cells a new partition of the
+   hypothesis would *take* (:func:`taken_cells`: they agree coherently under it, and belong
+   to no partition or have more cells of their neighbourhood agreeing under it than under
+   their partition's transform) must pass the stopping rule over all the map's cells, with
+   chance what the rival hypotheses would take (upper quartile), and the same tests of
+   merging and of keeping enough cells. A part shifted along a corridor against a partition
+   found before it shares its walls along the shift with that partition, so few of its
+   cells are suspects; its own region is what its true transform takes;
+6. repeats until nothing new is found (or ``max_partitions`` is reached).
 
 A best hypothesis that fails only the count of step 4 is returned as a *rival*: when a
 partition sits at a wrong place that fits its own cells (a twin of its room), the cells of
@@ -65,9 +74,9 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .hypotheses import best_hypothesis, rival_chance
+from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance
 from .options import Settings
-from .partitions import Found, merge_target, reassign, with_fringe
+from .partitions import Found, merge_target, owners, reassign, with_fringe
 from .views import candidates_of, exhausted, moving_remainder, occupied_count
 
 __all__ = [
@@ -266,6 +275,83 @@ def _inside(
     return (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
 
 
+#: Side of the blocks in which :func:`taken_cells` counts a neighbourhood's agreeing cells,
+#: and the side of the neighbourhood in blocks: 25 x 25 cells, the coherence window
+#: (``2 SUPPORT_RADIUS + 1``), counted on blocks so that the cost follows the cells.
+BLOCK = 5
+NEIGHBOURHOOD_BLOCKS = 5
+
+
+def neighbourhood_counts(
+    agree: NDArray[np.bool_], points: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """Per cell of ``points``, how many ``agree`` cells lie in its neighbourhood (the
+    :data:`NEIGHBOURHOOD_BLOCKS` x :data:`NEIGHBOURHOOD_BLOCKS` blocks of :data:`BLOCK`
+    cells around its block)."""
+    cols = points[:, 0].astype(np.intp) // BLOCK
+    rows = points[:, 1].astype(np.intp) // BLOCK
+    if not agree.any():
+        return np.zeros(points.shape[0], dtype=np.int64)
+    reach = NEIGHBOURHOOD_BLOCKS // 2
+    r0, c0 = int(rows.min()), int(cols.min())
+    shape = (int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1)
+    flat = (rows - r0) * shape[1] + (cols - c0)
+    counts = np.bincount(flat[agree], minlength=shape[0] * shape[1]).reshape(shape)
+    summed = cv2.boxFilter(
+        counts.astype(np.float64),  # exact: integer counts far below 2^53
+        cv2.CV_64F,
+        (2 * reach + 1, 2 * reach + 1),
+        normalize=False,
+        borderType=cv2.BORDER_CONSTANT,
+    )
+    return np.rint(summed[rows - r0, cols - c0]).astype(np.int64)
+
+
+def _owner_counts(
+    found: list[Found],
+    owner: NDArray[np.intp],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> NDArray[np.int64]:
+    """Per cell, the :func:`neighbourhood_counts` of its partition's transform (0 for cells
+    of no partition)."""
+    out = np.zeros(points.shape[0], dtype=np.int64)
+    for j, f in enumerate(found):
+        mine = owner == j
+        if mine.any():
+            agree = index.occupied_agreement(f.transform.apply(points), threshold)
+            out[mine] = neighbourhood_counts(agree, points)[mine]
+    return out
+
+
+def taken_cells(
+    transform: RigidTransform,
+    owner: NDArray[np.intp],
+    owner_count: NDArray[np.int64],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    around: NDArray[np.float64],
+) -> NDArray[np.bool_]:
+    """The cells a new partition of ``transform`` would take: they agree under it, coherently
+    (at least :data:`SUPPORT_SHARE` of the occupied cells in the window around them agree
+    too), and either belong to no partition or have more cells of their neighbourhood agree
+    under ``transform`` than under their partition's (``owner_count``)."""
+    agree = index.occupied_agreement(transform.apply(points), threshold)
+    if not agree.any():
+        return agree
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    shape = (int(rows.max()) + 1, int(cols.max()) + 1)
+    coherent = agree.copy()
+    coherent[agree] = (
+        _window_counts(rows, cols, agree, agree, shape, SUPPORT_RADIUS)
+        >= SUPPORT_SHARE * around[agree]
+    )
+    better = (owner < 0) | (neighbourhood_counts(agree, points) > owner_count)
+    return coherent & better
+
+
 def _new_ones(
     candidates: list[Candidate], found: list[Found], pts: NDArray[np.float64], tolerance: float
 ) -> list[Candidate]:
@@ -365,10 +451,16 @@ def recover(
         if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
             tries.append(suspect)
         new = None
+        short: list[_Shortfall] = []
         for cells in tries:
-            new, rival = search.lost_partition(found, cells)
-            if rival is not None:
-                rivals.append(rival)
+            new, shortfall = search.lost_partition(found, cells)
+            if shortfall is not None:
+                short.append(shortfall)
+            if new is not None:
+                break
+        rivals += [shortfall.transform for shortfall in short]
+        for shortfall in short if new is None else ():  # counted over the whole map instead
+            new = search.taken_partition(found, shortfall)
             if new is not None:
                 break
         if new is None:
@@ -389,6 +481,15 @@ def recover(
 
 
 @dataclass(frozen=True)
+class _Shortfall:
+    """The best hypothesis of a search whose suspects were too few for a new partition, and
+    the hypotheses it was chosen from (the rivals of its chance)."""
+
+    transform: RigidTransform
+    candidates: tuple[Candidate, ...]
+
+
+@dataclass(frozen=True)
 class _Search:
     """What a search for a lost partition among suspect cells needs (fixed for a map):
     one registration of the suspects, and the tests its best hypothesis must pass."""
@@ -404,10 +505,10 @@ class _Search:
 
     def lost_partition(
         self, found: list[Found], cells: NDArray[np.bool_]
-    ) -> tuple[Found | None, RigidTransform | None]:
+    ) -> tuple[Found | None, _Shortfall | None]:
         """The partition that ``cells`` hide, if its hypothesis passes every test; else
         ``None`` and, if the hypothesis failed only the count (too few of ``cells`` agree
-        coherently for a new partition), the hypothesis as a rival."""
+        coherently for a new partition), the hypothesis and its rivals."""
         settings = self.settings
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells or exhausted(self.registrar):
@@ -451,11 +552,59 @@ class _Search:
         )
         chance, _, needed = settings.needed(n, p_step)
         if k < needed:
-            return None, transform
+            return None, _Shortfall(transform, tuple(candidates))
         members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
         if merge_target(found, pts[members], self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0), None
+
+    def taken_partition(self, found: list[Found], shortfall: _Shortfall) -> Found | None:
+        """The partition of the cells ``transform`` would *take* (:func:`taken_cells`), if
+        they pass the stopping rule against what the other hypotheses would take.
+
+        A part shifted along a corridor against a partition already found (a pure-shift
+        bump) shares its walls parallel to the shift with that partition: they agree under
+        both transforms and stay with the partition, so few of the part's cells are
+        suspects, and their count fails although the hypothesis is the part's true
+        transform. Counted over the whole map instead, the part's own region is what the
+        hypothesis takes: there the cells around agree under it more than under their
+        partition's transform. Chance is what the rival hypotheses of the same suspects
+        (those that put them elsewhere) would take, at the upper quartile
+        (:data:`~brokenness.measure.hypotheses.RIVAL_QUANTILE`), over all the map's cells.
+        """
+        settings, pts, index = self.settings, self.points, self.index
+        transform, candidates = shortfall.transform, shortfall.candidates
+        loose = settings.loose
+        owner = owners(found, pts.shape[0])
+        owner_count = _owner_counts(found, owner, pts, index, settings.threshold)
+        taken = taken_cells(
+            transform, owner, owner_count, pts, index, settings.threshold, self.around
+        )
+        k = int(np.count_nonzero(taken))
+        if k < settings.min_cells:
+            return None
+        n = pts.shape[0]
+        sample = pts[:: max(1, n // 200)]
+        at_best = transform.apply(sample)
+        shares = [
+            np.count_nonzero(
+                taken_cells(
+                    c.transform, owner, owner_count, pts, index, settings.threshold, self.around
+                )
+            )
+            / n
+            for c in candidates
+            if float(np.linalg.norm(c.transform.apply(sample) - at_best, axis=1).mean()) > loose
+        ]
+        p_take = float(np.quantile(shares, RIVAL_QUANTILE)) if shares else self.p0
+        chance, _, needed = settings.needed(n, min(p_take, self.p0))
+        if k < needed:
+            return None
+        left = np.flatnonzero(taken)
+        members = left[with_fringe(transform, pts[left], np.ones(left.size, bool), index, loose)]
+        if merge_target(found, pts[members], index, loose) is not None:
+            return None
+        return Found(transform, members, (k - chance) / k, 0.0)
 
     def elsewhere(self, found: list[Found], members: NDArray[np.intp]) -> RigidTransform | None:
         """The best hypothesis of ``members`` registered alone that puts them elsewhere than
