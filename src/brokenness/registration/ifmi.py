@@ -609,7 +609,8 @@ class IFMIRegistrar:
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
-        placed: list[NDArray[np.float64]] = []  # the moving points under each kept hypothesis
+        # the moving points under each kept hypothesis
+        placed = np.empty((max_candidates, mov.points.shape[0], 2), dtype=np.float64)
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
@@ -623,10 +624,10 @@ class IFMIRegistrar:
                 # are very unlikely to win and keep their spectral estimate (saves time)
                 full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
             moved = mov.points @ full[:2, :2].T + full[:2, 2]
-            if any(self._same(moved, other) for other in placed):
+            if self._same_as_any(moved, placed[: len(scored)]):
                 continue
+            placed[len(scored)] = moved
             scored.append((score, z, k, full))
-            placed.append(moved)
             if len(scored) == max_candidates:
                 break
         # best first: agreeing cells, then peak quality, then spectral order (deterministic)
@@ -698,10 +699,19 @@ class IFMIRegistrar:
         return out
 
     @staticmethod
-    def _same(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
-        """Two placements of the moving points lie within a cell of each other on average."""
-        d = a - b
-        return bool(np.mean(np.sqrt(np.einsum("ij,ij->i", d, d))) < 1.0)
+    def _same_as_any(a: NDArray[np.float64], others: NDArray[np.float64]) -> bool:
+        """Whether the placement ``a`` (N, 2) of the moving points lies within a cell of one
+        of ``others`` (K, N, 2) on average (mean distance of the points under 1).
+
+        All K comparisons in one pass: the squared distances as one ``(K * N, 2)``
+        product and each placement's mean a reduction of its own row, the same sums in the
+        same order as comparing the pairs one at a time.
+        """
+        if others.shape[0] == 0:
+            return False
+        d = (a - others).reshape(-1, 2)
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(others.shape[:2])
+        return bool((np.mean(dist, axis=1) < 1.0).any())
 
     @staticmethod
     def _confidence(excess: float) -> float:
