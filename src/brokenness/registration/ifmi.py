@@ -457,8 +457,9 @@ class IFMIRegistrar:
         """The reference's occupied indicator pooled by ``factor`` (cached)."""
         img = ref.levels.get(factor)
         if img is None:
-            crop = np.unpackbits(ref.crop, axis=1, count=ref.crop_width).view(np.bool_)
-            img = ref.levels[factor] = _spectral.coarse_indicator(crop, factor)
+            img = ref.levels[factor] = _spectral.coarse_indicator_packed(
+                ref.crop, ref.crop_width, factor
+            )
         return img
 
     def _reference_signature(self, ref: _Prepared, factor: int) -> NDArray[np.complex64]:
