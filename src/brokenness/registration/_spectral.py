@@ -27,6 +27,7 @@ __all__ = [
     "bounding_box",
     "circular_peaks",
     "coarse_indicator",
+    "coarse_indicator_of_points",
     "coarse_indicator_packed",
     "hann_window",
     "log_polar_signature",
@@ -69,6 +70,20 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     img = _pool_rows(img, factor)
     img = _pool_rows(np.ascontiguousarray(img.T), factor)
     return np.ascontiguousarray(img.T, dtype=np.float32)
+
+
+def coarse_indicator_of_points(
+    points: NDArray[np.int32], shape: tuple[int, int], factor: int
+) -> F32:
+    """:func:`coarse_indicator` of a ``shape`` grid whose occupied cells are ``points``
+    (``(x, y)``, distinct, all inside): each marks its coarse cell, so the cost follows the
+    cells, not the grid."""
+    rows, cols = shape
+    f = max(int(factor), 1)
+    out = np.zeros((-(-rows // f), -(-cols // f)), dtype=np.float32)
+    if points.shape[0]:
+        out[points[:, 1] // f, points[:, 0] // f] = 1.0
+    return out
 
 
 def coarse_indicator_packed(packed: NDArray[np.uint8], width: int, factor: int) -> F32:

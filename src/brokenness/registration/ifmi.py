@@ -212,7 +212,7 @@ class _Cells:
 
     @classmethod
     def of(cls, cells: OccupiedCells) -> _Cells:
-        return cls(cells.shape, cells.offset, cells.crop.shape, np.flatnonzero(cells.crop))
+        return cls(cells.shape, cells.offset, cells.crop.shape, cells.flat_indices())
 
     def same(self, cells: OccupiedCells) -> bool:
         if (self.shape, self.offset, self.crop_shape) != (
@@ -223,7 +223,28 @@ class _Cells:
             return False
         crop = cells.crop.reshape(-1)
         # as many cells, and all of them at the remembered places
-        return self.flat.size == int(np.count_nonzero(crop)) and bool(crop[self.flat].all())
+        return self.flat.size == cells.count and bool(crop[self.flat].all())
+
+
+def _coarse(
+    crop: NDArray[np.bool_], cells: NDArray[np.int32] | None, factor: int
+) -> NDArray[np.float32]:
+    """The pooled image of ``crop`` (:func:`~brokenness.registration._spectral.
+    coarse_indicator`), from its occupied ``cells`` when they are known."""
+    if cells is None:
+        return _spectral.coarse_indicator(crop, factor)
+    return _spectral.coarse_indicator_of_points(cells, (crop.shape[0], crop.shape[1]), factor)
+
+
+def _cells_box(cells: OccupiedCells) -> tuple[int, int, int, int] | None:
+    """:func:`~brokenness.registration._spectral.bounding_box` of ``cells.crop``, from its
+    ``points`` when they are given (listed row by row: the first and last rows are theirs)."""
+    if cells.points is None:
+        return _spectral.bounding_box(cells.crop)
+    if cells.points.shape[0] == 0:
+        return None
+    x, y = cells.points[:, 0], cells.points[:, 1]
+    return int(y[0]), int(y[-1]) + 1, int(x.min()), int(x.max()) + 1
 
 
 def _same_moving(a: NDArray[np.int8] | _Cells, b: NDArray[np.int8] | OccupiedCells) -> bool:
@@ -469,13 +490,16 @@ class IFMIRegistrar:
         return sig
 
     def _moving(self, moving: NDArray[np.int8] | OccupiedCells, ref: _Prepared) -> _Moving:
+        cells: NDArray[np.int32] | None = None  # the occupied cells in the crop, if known
         if isinstance(moving, OccupiedCells):
-            box = _spectral.bounding_box(moving.crop)
+            box = _cells_box(moving)
             if box is None:
                 raise MapError("the moving map has no occupied cell, there is nothing to register")
             dc, dr = moving.offset
             r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
             crop = np.ascontiguousarray(moving.crop[box[0] : box[1], box[2] : box[3]])
+            if moving.points is not None:
+                cells = moving.points - np.array([box[2], box[0]], dtype=np.int32)
         else:
             occ, (r0, r1, c0, c1) = _occupied_box(np.asarray(moving), "moving map", "to register")
             crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
@@ -483,15 +507,13 @@ class IFMIRegistrar:
         extent = max(r1 - r0, c1 - c0)
         factor = max(ref.factor, math.ceil(extent / self.max_size))
         rot_factor = max(ref.rotation_factor, math.ceil(extent / self.rotation_size))
-        xy = _refine.edge_points(crop)
+        xy = _refine.edge_points(crop, cells)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
             xy = xy[pick]
         points = xy.astype(np.float64) + np.array([c0, r0], dtype=np.float64)
-        coarse = _spectral.coarse_indicator(crop, factor)
-        for_rotation = (
-            coarse if rot_factor == factor else _spectral.coarse_indicator(crop, rot_factor)
-        )
+        coarse = _coarse(crop, cells, factor)
+        for_rotation = coarse if rot_factor == factor else _coarse(crop, cells, rot_factor)
         return _Moving(factor, rot_factor, coarse, for_rotation, (c0, r0), points)
 
     def _reference_spectrum(
