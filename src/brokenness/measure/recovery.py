@@ -85,6 +85,7 @@ __all__ = [
     "SUPPORT_SHARE",
     "agreement_support",
     "drop_incoherent",
+    "occupied_around",
     "recover",
 ]
 
@@ -136,14 +137,15 @@ def agreement_support(
     ndarray of float64
         In [0, 1]; 0 for cells of no partition.
     """
-    around = _occupied_around(points, shape, radius)
+    around = occupied_around(points, shape, radius)
     return _support(found, points, index, threshold, shape, radius, around)
 
 
-def _occupied_around(
-    points: NDArray[np.float64], shape: tuple[int, int], radius: int
+def occupied_around(
+    points: NDArray[np.float64], shape: tuple[int, int], radius: int = SUPPORT_RADIUS
 ) -> NDArray[np.float64]:
-    """Per occupied cell, the occupied cells in the square window around it."""
+    """Per occupied cell, the occupied cells in the square window around it (a quantity of
+    the map alone: :func:`recover` and :func:`drop_incoherent` take it computed once)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
     return _window_counts(rows, cols, everything, everything, shape, radius)
@@ -155,6 +157,7 @@ def drop_incoherent(
     index: ReferenceIndex,
     settings: Settings,
     shape: tuple[int, int],
+    around: NDArray[np.float64] | None = None,
 ) -> list[Found]:
     """The partitions that are coherent regions of the map, cells reassigned.
 
@@ -164,9 +167,11 @@ def drop_incoherent(
     happens to put on reference walls (common where walls are long and straight) has little
     support; it is not a part of the map that is "off", and its cells go to the partitions
     that align them best. The least coherent partition is dropped first, one at a time.
+    ``around``: :func:`occupied_around` of ``points``, if already at hand.
     """
     threshold, min_cells = settings.threshold, settings.min_cells
-    around = _occupied_around(points, shape, SUPPORT_RADIUS)
+    if around is None:
+        around = occupied_around(points, shape)
     while len(found) > 1:
         support = _support(found, points, index, threshold, shape, SUPPORT_RADIUS, around)
         coherent = [int(np.count_nonzero(support[f.members] >= SUPPORT_SHARE)) for f in found]
@@ -381,6 +386,7 @@ def recover(
     reference: Any,
     settings: Settings,
     relocate: bool = False,
+    around: NDArray[np.float64] | None = None,
 ) -> tuple[list[Found], list[RigidTransform]]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
@@ -406,6 +412,8 @@ def recover(
         and return the best hypothesis that puts them elsewhere than every partition does as
         a rival (a part at a twin of its room: its own cells give its true place among their
         hypotheses).
+    around : ndarray, optional
+        :func:`occupied_around` of ``points`` (computed here if not given).
 
     Returns
     -------
@@ -420,7 +428,8 @@ def recover(
         settle.settle` offers these to every partition as replacements.
     """
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    around = _occupied_around(points, working.shape, SUPPORT_RADIUS)
+    if around is None:
+        around = occupied_around(points, working.shape)
     threshold, min_cells = settings.threshold, settings.min_cells
     search = _Search(
         points,

@@ -136,7 +136,7 @@ from .partitions import (
     merge_target,
     with_fringe,
 )
-from .recovery import drop_incoherent, recover
+from .recovery import drop_incoherent, occupied_around, recover
 from .result import BrokennessResult, Partition
 from .settle import settle
 from .views import (
@@ -297,14 +297,17 @@ def _compute(
     whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    found, rivals = recover(found, points, working, index, thorough, whole, settings, True)
-    found = _tested(found, points, working, index, settings, rivals)
+    around = occupied_around(points, working.shape)  # of the map alone: once a call
+    found, rivals = recover(found, points, working, index, thorough, whole, settings, True, around)
+    found = _tested(found, points, working, index, settings, rivals, around)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
-        again, rivals = recover(found, points, working, index, thorough, whole, settings)
+        again, rivals = recover(
+            found, points, working, index, thorough, whole, settings, False, around
+        )
         if len(again) <= len(found):
             break
-        found = _tested(again, points, working, index, settings, rivals)
-    del whole  # the prepared reference (its distance map): no registration from here on
+        found = _tested(again, points, working, index, settings, rivals, around)
+    del whole, around  # the prepared reference (its distance map): no registration from here on
     reason, map_ratio, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
@@ -363,16 +366,18 @@ def _tested(
     index: ReferenceIndex,
     settings: Settings,
     rivals: list[RigidTransform],
+    around: NDArray[np.float64],
 ) -> list[Found]:
     """The tests of what the recursion and the recovery found, in order: join one-piece
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
-    and, if settling changed anything, drop again."""
+    and, if settling changed anything, drop again (``around``: the occupied cells around
+    each, :func:`~brokenness.measure.recovery.occupied_around`)."""
     found = consolidate(found, points, index, settings)
-    found = drop_incoherent(found, points, index, settings, working.shape)
+    found = drop_incoherent(found, points, index, settings, working.shape, around)
     found = drop_redundant(found, points, index, settings)
     settled = settle(found, points, index, settings, rivals)
     if settled is not found:  # the tests again: settling moves transforms, it adds nothing
-        found = drop_incoherent(settled, points, index, settings, working.shape)
+        found = drop_incoherent(settled, points, index, settings, working.shape, around)
         found = drop_redundant(found, points, index, settings)
     return found
 

@@ -160,14 +160,19 @@ def sweep_rotation(
 
 
 def _turned(
-    moved: NDArray[np.float64], pivot: NDArray[np.float64], angles: list[float]
+    moved: NDArray[np.float64],
+    pivot: NDArray[np.float64],
+    angles: list[float],
+    out: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
-    """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``."""
+    """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
+    (written to ``out`` if given)."""
     a = np.asarray(angles, dtype=np.float64)[:, None]
     c, s = np.cos(a), np.sin(a)
     dx = moved[:, 0] - pivot[0]
     dy = moved[:, 1] - pivot[1]
-    out = np.empty((a.shape[0], moved.shape[0], 2))
+    if out is None:
+        out = np.empty((a.shape[0], moved.shape[0], 2))
     out[:, :, 0] = c * dx - s * dy + pivot[0]
     out[:, :, 1] = s * dx + c * dy + pivot[1]
     return out
@@ -247,11 +252,12 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        moves[:2] = _turned(moved, pivot, [rot_step, -rot_step])
-        for i, (_, dx, dy) in enumerate(steps[2:], start=2):
-            moves[i] = moved
-            moves[i, :, 0] += dx
-            moves[i, :, 1] += dy
+        _turned(moved, pivot, [rot_step, -rot_step], out=moves[:2])
+        moves[2:] = moved  # the four shifts, each along its own axis
+        moves[2, :, 0] += shift_step
+        moves[3, :, 0] -= shift_step
+        moves[4, :, 1] += shift_step
+        moves[5, :, 1] -= shift_step
         scores = _soft_scores(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))

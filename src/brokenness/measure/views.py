@@ -90,6 +90,8 @@ def remainder_cells(
     The same cells as ``remainder_states(...) == OCCUPIED`` (for a method that does not use
     free space), as a crop of the box of the cells left: the cost follows those cells, not
     the grid. Isolated cells are found on that box (a cell outside it is never occupied).
+    When the cells come row by row (as :func:`~brokenness.grid.cell_points` lists them),
+    they are handed on as the crop's ``points`` too.
     """
     r, c = rows[remaining], cols[remaining]
     if r.size == 0:
@@ -100,7 +102,20 @@ def remainder_cells(
         keep = ~isolated_points(r, c)
         r, c = r[keep], c[keep]
     grid[r - r0, c - c0] = True
-    return OccupiedCells(grid, (c0, r0), shape)
+    return OccupiedCells(grid, (c0, r0), shape, _row_major_points(r - r0, c - c0, grid.shape[1]))
+
+
+def _row_major_points(
+    rows: NDArray[np.intp], cols: NDArray[np.intp], width: int
+) -> NDArray[np.int32] | None:
+    """``(x, y)`` of distinct cells as int32, if they come row by row (else ``None``)."""
+    flat = rows * width + cols
+    if flat.size > 1 and not bool(np.all(flat[1:] > flat[:-1])):
+        return None
+    out = np.empty((rows.shape[0], 2), dtype=np.int32)
+    out[:, 0] = cols
+    out[:, 1] = rows
+    return out
 
 
 def moving_remainder(

@@ -51,19 +51,27 @@ def _edges_u8(occupied: NDArray[np.bool_]) -> NDArray[np.uint8]:
     return np.asarray(cv2.subtract(occ, inner, dst=inner), dtype=np.uint8)
 
 
-def edge_points(occupied: NDArray[np.bool_]) -> NDArray[np.int32]:
+def edge_points(
+    occupied: NDArray[np.bool_], cells: NDArray[np.int32] | None = None
+) -> NDArray[np.int32]:
     """``(x, y)`` of the cells of :func:`edges`, row by row, shape (N, 2).
 
-    The occupied cells are listed once (one fast scan) and each is tested by looking up its
-    four neighbours (cells off the grid are not occupied, as for :func:`edges`): the cost
-    beyond the scan follows the cells, and there is no temporary of the grid's size.
+    The occupied cells are listed once (one fast scan; or given as ``cells``, their
+    ``(x, y)`` row by row, as the scan lists them) and each is tested by looking up its four
+    neighbours (cells off the grid are not occupied, as for :func:`edges`): the cost beyond
+    the scan follows the cells, and there is no temporary of the grid's size.
     """
     occ = np.ascontiguousarray(occupied, dtype=np.bool_)
     h, w = occ.shape
-    found = cv2.findNonZero(occ.view(np.uint8))
-    if found is None:
+    if cells is None:
+        found = cv2.findNonZero(occ.view(np.uint8))
+        if found is None:
+            return np.zeros((0, 2), dtype=np.int32)
+        xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
+    elif cells.shape[0] == 0:
         return np.zeros((0, 2), dtype=np.int32)
-    xy = np.asarray(found, dtype=np.int32).reshape(-1, 2)
+    else:
+        xy = np.ascontiguousarray(cells, dtype=np.int32)
     x, y = xy[:, 0], xy[:, 1]
     flat = occ.reshape(-1)
     at = y.astype(np.intp) * w + x

@@ -27,6 +27,8 @@ __all__ = [
     "bounding_box",
     "circular_peaks",
     "coarse_indicator",
+    "coarse_indicator_of_points",
+    "coarse_indicator_packed",
     "hann_window",
     "log_polar_signature",
     "packed_size",
@@ -70,14 +72,45 @@ def coarse_indicator(occupied: NDArray[np.bool_] | NDArray[np.uint8], factor: in
     return np.ascontiguousarray(img.T, dtype=np.float32)
 
 
-def _pool_rows(img: NDArray[np.uint8], factor: int) -> NDArray[np.uint8]:
-    """Max over blocks of ``factor`` rows (a last, shorter block as it is: the zero rows that
-    would pad it change no maximum of non-negative values)."""
+def coarse_indicator_of_points(
+    points: NDArray[np.int32], shape: tuple[int, int], factor: int
+) -> F32:
+    """:func:`coarse_indicator` of a ``shape`` grid whose occupied cells are ``points``
+    (``(x, y)``, distinct, all inside): each marks its coarse cell, so the cost follows the
+    cells, not the grid."""
+    rows, cols = shape
+    f = max(int(factor), 1)
+    out = np.zeros((-(-rows // f), -(-cols // f)), dtype=np.float32)
+    if points.shape[0]:
+        out[points[:, 1] // f, points[:, 0] // f] = 1.0
+    return out
+
+
+def coarse_indicator_packed(packed: NDArray[np.uint8], width: int, factor: int) -> F32:
+    """:func:`coarse_indicator` of the cells packed by row in ``packed`` (``numpy.packbits``
+    along axis 1 of a ``width``-column grid of booleans).
+
+    The blocks of rows are pooled on the packed bytes (the maximum of 0/1 cells is their
+    bitwise or, eight cells a byte), and only the pooled rows are unpacked: the same image,
+    without a byte per cell of the grid.
+    """
+    if factor <= 1:
+        return np.unpackbits(packed, axis=1, count=width).astype(np.float32)
+    rows = _pool_rows(packed, factor, np.bitwise_or)
+    img = np.unpackbits(rows, axis=1, count=width)
+    img = _pool_rows(np.ascontiguousarray(img.T), factor)
+    return np.ascontiguousarray(img.T, dtype=np.float32)
+
+
+def _pool_rows(img: NDArray[np.uint8], factor: int, op: np.ufunc = np.maximum) -> NDArray[np.uint8]:
+    """Max (or ``op``: the bitwise or of packed cells) over blocks of ``factor`` rows (a
+    last, shorter block as it is: the zero rows that would pad it change no maximum of
+    non-negative values)."""
     rows, cols = img.shape
     whole = rows // factor * factor
-    out = img[:whole].reshape(rows // factor, factor, cols).max(axis=1)
+    out = op.reduce(img[:whole].reshape(rows // factor, factor, cols), axis=1)
     if whole < rows:
-        out = np.concatenate([out, img[whole:].max(axis=0, keepdims=True)])
+        out = np.concatenate([out, op.reduce(img[whole:], axis=0, keepdims=True)])
     return out
 
 

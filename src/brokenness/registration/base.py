@@ -58,16 +58,30 @@ class OccupiedCells:
         ``(col0, row0)``.
     shape : (int, int)
         ``(rows, cols)`` of the whole grid.
+    points : ndarray of int32, shape (N, 2), optional
+        ``(x, y)`` of the occupied cells in the crop, row by row (the order of
+        ``cv2.findNonZero``), when the maker has them at hand: then they are not looked for
+        in the crop again.
     """
 
     crop: NDArray[np.bool_]
     offset: tuple[int, int]
     shape: tuple[int, int]
+    points: NDArray[np.int32] | None = None
 
     @property
     def count(self) -> int:
         """Number of occupied cells."""
+        if self.points is not None:
+            return int(self.points.shape[0])
         return int(np.count_nonzero(self.crop))
+
+    def flat_indices(self) -> NDArray[np.intp]:
+        """Indices of the occupied cells in the flattened crop, ascending."""
+        if self.points is None:
+            return np.flatnonzero(self.crop)
+        width = self.crop.shape[1]
+        return self.points[:, 1].astype(np.intp) * width + self.points[:, 0]
 
     def states(self) -> NDArray[np.int8]:
         """The whole grid as cell states: occupied (1) on the cells, unknown (-1) elsewhere."""

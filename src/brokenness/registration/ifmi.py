@@ -212,7 +212,7 @@ class _Cells:
 
     @classmethod
     def of(cls, cells: OccupiedCells) -> _Cells:
-        return cls(cells.shape, cells.offset, cells.crop.shape, np.flatnonzero(cells.crop))
+        return cls(cells.shape, cells.offset, cells.crop.shape, cells.flat_indices())
 
     def same(self, cells: OccupiedCells) -> bool:
         if (self.shape, self.offset, self.crop_shape) != (
@@ -223,7 +223,28 @@ class _Cells:
             return False
         crop = cells.crop.reshape(-1)
         # as many cells, and all of them at the remembered places
-        return self.flat.size == int(np.count_nonzero(crop)) and bool(crop[self.flat].all())
+        return self.flat.size == cells.count and bool(crop[self.flat].all())
+
+
+def _coarse(
+    crop: NDArray[np.bool_], cells: NDArray[np.int32] | None, factor: int
+) -> NDArray[np.float32]:
+    """The pooled image of ``crop`` (:func:`~brokenness.registration._spectral.
+    coarse_indicator`), from its occupied ``cells`` when they are known."""
+    if cells is None:
+        return _spectral.coarse_indicator(crop, factor)
+    return _spectral.coarse_indicator_of_points(cells, (crop.shape[0], crop.shape[1]), factor)
+
+
+def _cells_box(cells: OccupiedCells) -> tuple[int, int, int, int] | None:
+    """:func:`~brokenness.registration._spectral.bounding_box` of ``cells.crop``, from its
+    ``points`` when they are given (listed row by row: the first and last rows are theirs)."""
+    if cells.points is None:
+        return _spectral.bounding_box(cells.crop)
+    if cells.points.shape[0] == 0:
+        return None
+    x, y = cells.points[:, 0], cells.points[:, 1]
+    return int(y[0]), int(y[-1]) + 1, int(x.min()), int(x.max()) + 1
 
 
 def _same_moving(a: NDArray[np.int8] | _Cells, b: NDArray[np.int8] | OccupiedCells) -> bool:
@@ -457,8 +478,9 @@ class IFMIRegistrar:
         """The reference's occupied indicator pooled by ``factor`` (cached)."""
         img = ref.levels.get(factor)
         if img is None:
-            crop = np.unpackbits(ref.crop, axis=1, count=ref.crop_width).view(np.bool_)
-            img = ref.levels[factor] = _spectral.coarse_indicator(crop, factor)
+            img = ref.levels[factor] = _spectral.coarse_indicator_packed(
+                ref.crop, ref.crop_width, factor
+            )
         return img
 
     def _reference_signature(self, ref: _Prepared, factor: int) -> NDArray[np.complex64]:
@@ -468,13 +490,16 @@ class IFMIRegistrar:
         return sig
 
     def _moving(self, moving: NDArray[np.int8] | OccupiedCells, ref: _Prepared) -> _Moving:
+        cells: NDArray[np.int32] | None = None  # the occupied cells in the crop, if known
         if isinstance(moving, OccupiedCells):
-            box = _spectral.bounding_box(moving.crop)
+            box = _cells_box(moving)
             if box is None:
                 raise MapError("the moving map has no occupied cell, there is nothing to register")
             dc, dr = moving.offset
             r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
             crop = np.ascontiguousarray(moving.crop[box[0] : box[1], box[2] : box[3]])
+            if moving.points is not None:
+                cells = moving.points - np.array([box[2], box[0]], dtype=np.int32)
         else:
             occ, (r0, r1, c0, c1) = _occupied_box(np.asarray(moving), "moving map", "to register")
             crop = np.ascontiguousarray(occ[r0:r1, c0:c1])
@@ -482,15 +507,13 @@ class IFMIRegistrar:
         extent = max(r1 - r0, c1 - c0)
         factor = max(ref.factor, math.ceil(extent / self.max_size))
         rot_factor = max(ref.rotation_factor, math.ceil(extent / self.rotation_size))
-        xy = _refine.edge_points(crop)
+        xy = _refine.edge_points(crop, cells)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
             xy = xy[pick]
         points = xy.astype(np.float64) + np.array([c0, r0], dtype=np.float64)
-        coarse = _spectral.coarse_indicator(crop, factor)
-        for_rotation = (
-            coarse if rot_factor == factor else _spectral.coarse_indicator(crop, rot_factor)
-        )
+        coarse = _coarse(crop, cells, factor)
+        for_rotation = coarse if rot_factor == factor else _coarse(crop, cells, rot_factor)
         return _Moving(factor, rot_factor, coarse, for_rotation, (c0, r0), points)
 
     def _reference_spectrum(
@@ -609,7 +632,8 @@ class IFMIRegistrar:
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
-        placed: list[NDArray[np.float64]] = []  # the moving points under each kept hypothesis
+        # the moving points under each kept hypothesis
+        placed = np.empty((max_candidates, mov.points.shape[0], 2), dtype=np.float64)
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
@@ -623,10 +647,10 @@ class IFMIRegistrar:
                 # are very unlikely to win and keep their spectral estimate (saves time)
                 full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
             moved = mov.points @ full[:2, :2].T + full[:2, 2]
-            if any(self._same(moved, other) for other in placed):
+            if self._same_as_any(moved, placed[: len(scored)]):
                 continue
+            placed[len(scored)] = moved
             scored.append((score, z, k, full))
-            placed.append(moved)
             if len(scored) == max_candidates:
                 break
         # best first: agreeing cells, then peak quality, then spectral order (deterministic)
@@ -698,10 +722,19 @@ class IFMIRegistrar:
         return out
 
     @staticmethod
-    def _same(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
-        """Two placements of the moving points lie within a cell of each other on average."""
-        d = a - b
-        return bool(np.mean(np.sqrt(np.einsum("ij,ij->i", d, d))) < 1.0)
+    def _same_as_any(a: NDArray[np.float64], others: NDArray[np.float64]) -> bool:
+        """Whether the placement ``a`` (N, 2) of the moving points lies within a cell of one
+        of ``others`` (K, N, 2) on average (mean distance of the points under 1).
+
+        All K comparisons in one pass: the squared distances as one ``(K * N, 2)``
+        product and each placement's mean a reduction of its own row, the same sums in the
+        same order as comparing the pairs one at a time.
+        """
+        if others.shape[0] == 0:
+            return False
+        d = (a - others).reshape(-1, 2)
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(others.shape[:2])
+        return bool((np.mean(dist, axis=1) < 1.0).any())
 
     @staticmethod
     def _confidence(excess: float) -> float:
