@@ -165,7 +165,7 @@ def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
     found = [Found(left_t, np.flatnonzero(agree), 1.0, 0.0)]
     owner = recovery.owners(found, moved.shape[0])
     counts = recovery._owner_counts(found, owner, moved, index, SETTINGS.threshold)
-    around = recovery._occupied_around(moved, (540, 540), recovery.SUPPORT_RADIUS)
+    around = recovery.occupied_around(moved, (540, 540))
 
     def taken(t: RigidTransform) -> np.ndarray:
         return recovery.taken_cells(t, owner, counts, moved, index, SETTINGS.threshold, around)
