@@ -19,7 +19,7 @@ import brokenness.measure.recovery as recovery
 import brokenness.measure.settle as settle_module
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.partitions import Found, consolidate
+from brokenness.measure.partitions import Found, consolidate, reassign
 from brokenness.measure.recovery import agreement_support
 
 DATA = Path(__file__).parent / "data"
@@ -176,3 +176,37 @@ def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
     assert not taken(left_t).any()
     wrong = RigidTransform(np.radians(37.0), 40.0, -25.0)
     assert np.count_nonzero(taken(wrong)) < 0.1 * np.count_nonzero(by_truth)
+
+
+def test_only_a_true_part_taken_over_the_map_clears_the_free_space():
+    """The free-space check of a partition counted by the cells it takes: with the right
+    part of building 31 shifted by 12 cells (walls and free space), the partition of its true
+    transform, holding the cells it takes, makes the map's free space cross reference walls
+    far less often than the left part's partition alone; a partition at a wrong place (turned
+    by 90 degrees about the part) that holds the same cells does not."""
+    from _breaking import break_map, building_31_corner
+
+    ref = building_31_corner(520)
+    index = ReferenceIndex.build(ref)
+    right = np.zeros(ref.shape, bool)
+    right[:, 360:] = True
+    broken, truths = break_map(
+        ref, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
+    )
+    points = cell_points(broken.occupied)
+    left_t, right_t = truths
+    agree = index.occupied_agreement(left_t.apply(points), SETTINGS.threshold)
+    found = [Found(left_t, np.flatnonzero(agree), 1.0, 0.0)]
+    owner = recovery.owners(found, points.shape[0])
+    counts = recovery._owner_counts(found, owner, points, index, SETTINGS.threshold)
+    around = recovery.occupied_around(points, broken.shape)
+    taken = recovery.taken_cells(right_t, owner, counts, points, index, SETTINGS.threshold, around)
+    part = Found(right_t, np.flatnonzero(taken), 1.0, 0.0)
+    grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
+    assert len(grown) == 2
+    clears = recovery._clears_free_space
+    assert clears(found, grown, points, broken, index, SETTINGS)
+    centre = points[taken].mean(axis=0)
+    turned = RigidTransform(np.pi / 2).compose(RigidTransform(0.0, *(-centre))).compose(right_t)
+    wrong = [*found, Found(RigidTransform(0.0, *centre).compose(turned), part.members, 1.0, 0.0)]
+    assert not clears(found, wrong, points, broken, index, SETTINGS)

@@ -40,7 +40,9 @@ the recursion:
    chance what the rival hypotheses would take (upper quartile), and the same tests of
    merging and of keeping enough cells. A part shifted along a corridor against a partition
    found before it shares its walls along the shift with that partition, so few of its
-   cells are suspects; its own region is what its true transform takes;
+   cells are suspects; its own region is what its true transform takes. Such a partition
+   must also make the map's free space cross the reference's walls significantly less often
+   (:func:`_clears_free_space`): coincidences do not;
 6. repeats until nothing new is found (or ``max_partitions`` is reached).
 
 A best hypothesis that fails only the count of step 4 is returned as a *rival*: when a
@@ -62,6 +64,7 @@ at every angle tried (10-25 degrees), where the recursion alone finds five.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -74,6 +77,7 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
+from .evidence import contradiction
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
@@ -468,14 +472,22 @@ def recover(
             if new is not None:
                 break
         rivals += [shortfall.transform for shortfall in short]
+        grown = None
         for shortfall in short if new is None else ():  # counted over the whole map instead
-            new = search.taken_partition(found, shortfall)
-            if new is not None:
+            taken = search.taken_partition(found, shortfall)
+            if taken is None:
+                continue
+            grown = reassign([*found, taken], points, index, threshold, min_cells)
+            if len(grown) > len(found) and _clears_free_space(
+                found, grown, points, working, index, settings
+            ):
+                new = taken
                 break
         if new is None:
             break
-        new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
-        grown = reassign([*found, new], points, index, threshold, min_cells)
+        if grown is None:
+            new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
+            grown = reassign([*found, new], points, index, threshold, min_cells)
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
@@ -487,6 +499,35 @@ def recover(
             if elsewhere is not None:
                 rivals.append(elsewhere)
     return found, rivals
+
+
+def _clears_free_space(
+    found: list[Found],
+    grown: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    settings: Settings,
+) -> bool:
+    """Whether the partitions ``grown`` (``found`` and, last, a partition taken over the
+    whole map) make the map's free space cross the reference's walls significantly less
+    often than ``found`` do (:func:`~brokenness.measure.evidence.contradiction`).
+
+    The test of a partition counted by the cells it takes (step 5 of the module docstring):
+    the free space in front of the walls of a part that is truly off lands on reference walls
+    at about the chance rate under the transform of the partition that held its walls, and
+    rarely under its own, so the count of contradicting cells falls; a partition that took
+    cells by coincidence moves their free space from one wrong placement to another. Only the
+    free cells that change partition change the count: they are (nearly all) the new
+    partition's, which contradict ``x_new`` times, and ``fall + x_new`` times before. The fall
+    must exceed ``z`` standard deviations of the difference of those two Poisson counts,
+    ``z sqrt(fall + 2 x_new)``.
+    """
+    before = contradiction(found, points, working, index, settings.threshold)
+    after = contradiction(grown, points, working, index, settings.threshold)
+    fall = int(before.contradicting.sum()) - int(after.contradicting.sum())
+    x_new = int(after.contradicting[-1])
+    return fall > 0 and fall > settings.significance * math.sqrt(fall + 2 * x_new)
 
 
 @dataclass(frozen=True)
