@@ -18,7 +18,13 @@ from scipy.spatial import cKDTree
 
 from ..errors import MapError
 from ..grid import UNKNOWN, OccupancyMap
-from .distance import lookup_distance, manhattan_distance_map, sample_at
+from .distance import (
+    DistanceMap,
+    compact_distance_map,
+    lookup_distance,
+    manhattan_distance_map,
+    sample_at,
+)
 
 __all__ = [
     "ReferenceIndex",
@@ -31,6 +37,10 @@ __all__ = [
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
+#: References of more than this many cells keep their Manhattan distance map in two bytes a
+#: cell (:func:`~brokenness.masking.distance.compact_distance_map`; the same samples, bit for
+#: bit, a little slower to look up), smaller ones in float32.
+COMPACT_CELLS = 4_000_000
 #: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
 _BAND_ROWS = 512
 #: Manhattan balls of up to this many cells are cleared cell by cell (radius 3: 25 cells).
@@ -57,14 +67,15 @@ class ReferenceIndex:
     Attributes
     ----------
     reference : OccupancyMap
-    occupied_distance : ndarray of float32
-        Manhattan distance map to the nearest occupied reference cell.
+    occupied_distance : ndarray of float32 or uint16
+        Manhattan distance map to the nearest occupied reference cell (whole numbers; in
+        ``uint16`` for references of more than :data:`COMPACT_CELLS` cells).
     occupied_points : ndarray, shape (N, 2)
         Coordinates of the occupied reference cells.
     """
 
     reference: OccupancyMap
-    occupied_distance: NDArray[np.float32]
+    occupied_distance: DistanceMap
     occupied_points: NDArray[np.float64]
 
     @classmethod
@@ -80,9 +91,12 @@ class ReferenceIndex:
         if not occupied.any():
             raise MapError("the reference map has no occupied cell")
         points = cell_points(occupied)
+        compact = occupied.size > COMPACT_CELLS
         index = cls(
             reference=reference,
-            occupied_distance=manhattan_distance_map(occupied),
+            occupied_distance=(
+                compact_distance_map(occupied) if compact else manhattan_distance_map(occupied)
+            ),
             occupied_points=points,
         )
         index.__dict__["occupied"] = occupied  # the cached property, already at hand
@@ -177,7 +191,7 @@ class ReferenceIndex:
 
 
 def _known_and_near(
-    states: NDArray[np.int8], distance: NDArray[np.float32], threshold: float
+    states: NDArray[np.int8], distance: DistanceMap, threshold: float
 ) -> tuple[int, int]:
     """The known cells of ``states`` and those of them within ``threshold`` of ``distance``,
     counted in bands of rows (no temporary of the grid's size)."""

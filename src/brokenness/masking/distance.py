@@ -1,14 +1,39 @@
-"""Linear-time Manhattan distance maps, the building block of Birk's similarity Psi."""
+"""Linear-time Manhattan distance maps, the building block of Birk's similarity Psi.
+
+A map's Manhattan distances are whole numbers: :func:`compact_distance_map` keeps them in
+two bytes a cell (``uint16``), and :func:`sample_at` reads such a map exactly as it reads
+the same values in ``float32`` (see :func:`_bilinear_whole`).
+"""
 
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["lookup_distance", "manhattan_distance_map", "sample_at"]
+__all__ = [
+    "DistanceMap",
+    "compact_distance_map",
+    "lookup_distance",
+    "manhattan_distance_map",
+    "sample_at",
+]
+
+#: A distance map as :func:`sample_at` reads it: ``float32``, or whole numbers in ``uint16``.
+DistanceMap = NDArray[np.float32] | NDArray[np.uint16]
+
+#: The value of a ``uint16`` map's cells off the grid in a nearest-cell lookup (no distance
+#: of a map of fewer than 65535 rows plus columns reaches it).
+_NO_CELL = 65535
+#: Points per ``cv2.remap`` call are laid out in rows of this many (OpenCV asserts sides
+#: under 32767).
+_ROW_POINTS = 1024
+#: Largest exponent of a coordinate's bucket (coordinates of 2**7 and more share one), and
+#: so the patches a row or column of an atlas holds, at most (see :func:`_bilinear_whole`).
+_TOP_BUCKET = 7
 
 
 def manhattan_distance_map(mask: ArrayLike) -> NDArray[np.float32]:
@@ -50,31 +75,69 @@ def manhattan_distance_map(mask: ArrayLike) -> NDArray[np.float32]:
     return out
 
 
-def _extend_box(out: NDArray[np.float32], r0: int, r1: int, c0: int, c1: int) -> None:
+def compact_distance_map(mask: ArrayLike) -> DistanceMap:
+    """:func:`manhattan_distance_map` in two bytes a cell where every distance fits.
+
+    Parameters
+    ----------
+    mask : array_like of bool, 2D
+        The cells of one kind, at least one of them ``True``.
+
+    Returns
+    -------
+    ndarray of uint16, or of float32
+        The same whole numbers as :func:`manhattan_distance_map`: ``uint16`` when the grid
+        has fewer than 65535 rows plus columns (no distance reaches :data:`_NO_CELL`),
+        ``float32`` otherwise (or if ``mask`` is empty).
+
+    Notes
+    -----
+    The transform runs on the bounding box of the ``True`` cells in ``float32`` (OpenCV's
+    only exact type for it), which is then copied into the ``uint16`` grid and freed: the
+    grid-sized ``float32`` map is never held.
+    """
+    m = np.asarray(mask, dtype=bool)
+    if sum(m.shape) >= _NO_CELL or not m.any():
+        return manhattan_distance_map(m)
+    c0, r0, bw, bh = cv2.boundingRect(np.ascontiguousarray(m).view(np.uint8))
+    r1, c1 = r0 + bh, c0 + bw
+    inner = np.logical_not(m[r0:r1, c0:c1]).view(np.uint8)  # a fresh box of bytes
+    box = cv2.distanceTransform(inner, cv2.DIST_L1, 3)
+    del inner
+    out = np.empty(m.shape, dtype=np.uint16)
+    np.copyto(out[r0:r1, c0:c1], box, casting="unsafe")  # whole numbers under 65535
+    del box
+    _extend_box(out, r0, r1, c0, c1)
+    return out
+
+
+def _extend_box(out: DistanceMap, r0: int, r1: int, c0: int, c1: int) -> None:
     """Fill ``out`` outside the box ``[r0, r1) x [c0, c1)``, which holds the Manhattan
     distances to cells all inside it: a cell outside is as far as its nearest box cell plus
-    the distance to the box (whole numbers, exact in float32), written without temporaries."""
+    the distance to the box (whole numbers, exact in float32 and, for the grids
+    :func:`compact_distance_map` keeps so, in uint16), written without temporaries."""
     h, w = out.shape
+    kind = out.dtype
     band = out[r0:r1]
     if c0 > 0:  # left of the box, its rows
-        np.add(band[:, c0 : c0 + 1], np.arange(c0, 0, -1, dtype=np.float32), out=band[:, :c0])
+        np.add(band[:, c0 : c0 + 1], np.arange(c0, 0, -1, dtype=kind), out=band[:, :c0])
     if c1 < w:  # right of it
-        np.add(band[:, c1 - 1 : c1], np.arange(1, w - c1 + 1, dtype=np.float32), out=band[:, c1:])
+        np.add(band[:, c1 - 1 : c1], np.arange(1, w - c1 + 1, dtype=kind), out=band[:, c1:])
     if r0 > 0:  # above: the box's first row, now full width, plus the rows between
-        steps = np.arange(r0, 0, -1, dtype=np.float32)[:, None]
+        steps = np.arange(r0, 0, -1, dtype=kind)[:, None]
         np.add(out[r0 : r0 + 1], steps, out=out[:r0])
     if r1 < h:  # below
-        steps = np.arange(1, h - r1 + 1, dtype=np.float32)[:, None]
+        steps = np.arange(1, h - r1 + 1, dtype=kind)[:, None]
         np.add(out[r1 - 1 : r1], steps, out=out[r1:])
 
 
-def lookup_distance(distance_map: NDArray[np.float32], points: ArrayLike) -> NDArray[np.float32]:
+def lookup_distance(distance_map: DistanceMap, points: ArrayLike) -> NDArray[np.float32]:
     """Sample a distance map at (sub-cell) points, ``inf`` outside the grid.
 
     Parameters
     ----------
     distance_map : ndarray, 2D
-        As returned by :func:`manhattan_distance_map`.
+        As returned by :func:`manhattan_distance_map` or :func:`compact_distance_map`.
     points : array_like, shape (N, 2)
         ``(x, y) = (column, row)`` coordinates; rounded to the nearest cell.
 
@@ -87,7 +150,7 @@ def lookup_distance(distance_map: NDArray[np.float32], points: ArrayLike) -> NDA
 
 
 def sample_at(
-    field: NDArray[np.float32],
+    field: DistanceMap,
     points: ArrayLike,
     outside: float,
     *,
@@ -96,11 +159,13 @@ def sample_at(
     """Samples of a float32 grid at (sub-cell) points, ``outside`` off the grid.
 
     One ``cv2.remap`` over the points laid out as a two-channel map: as given when that fits
-    (OpenCV wants sides under 32767), in rows of 1024 points otherwise.
+    (OpenCV wants sides under 32767), in rows of 1024 points otherwise. A ``uint16`` grid of
+    whole numbers (:func:`compact_distance_map`) gives the samples of the same values in
+    ``float32``, bit for bit.
 
     Parameters
     ----------
-    field : ndarray of float32, 2D
+    field : ndarray of float32 or uint16, 2D
         A distance map, or any per-cell float32 table.
     points : array_like, shape (..., 2)
         ``(x, y) = (column, row)`` coordinates.
@@ -119,11 +184,28 @@ def sample_at(
     shape = grid.shape[:-1]
     if grid.size == 0:
         return np.zeros(shape, dtype=np.float32)
+    if field.dtype == np.uint16:
+        whole = cast("NDArray[np.uint16]", field)
+        flat = _whole_samples(whole, grid.reshape(-1, 2), outside, nearest=nearest)
+        return flat.reshape(shape)
+    out = _remap(field, grid, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR, outside)
+    return np.asarray(out, dtype=np.float32).reshape(shape)
+
+
+def _remap(
+    field: NDArray[np.float32] | NDArray[np.uint16],
+    grid: NDArray[np.float32],
+    interpolation: int,
+    outside: float,
+) -> NDArray[np.float32] | NDArray[np.uint16]:
+    """``cv2.remap`` of ``field`` at the points ``grid`` (shape (..., 2), float32), flat, in
+    the field's type: the points as given when they fit OpenCV's sides, else in rows."""
+    count = math.prod(grid.shape[:-1])
     if grid.ndim == 2:
         grid = grid.reshape(1, -1, 2)
     if grid.ndim != 3 or max(grid.shape[:2]) >= 32_000:
         flat = grid.reshape(-1, 2)
-        n, width = flat.shape[0], 1024
+        n, width = flat.shape[0], _ROW_POINTS
         grid = np.full((-(-n // width) * width, 2), -1e6, dtype=np.float32)
         grid[:n] = flat
         grid = grid.reshape(-1, width, 2)
@@ -131,9 +213,163 @@ def sample_at(
         field,
         grid,
         None,
-        cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+        interpolation,
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=float(outside),
     )
-    count = math.prod(shape)
-    return np.asarray(out, dtype=np.float32).reshape(-1)[:count].reshape(shape)
+    return np.asarray(out).reshape(-1)[:count]
+
+
+def _whole_samples(
+    field: NDArray[np.uint16], xy: NDArray[np.float32], outside: float, *, nearest: bool
+) -> NDArray[np.float32]:
+    """:func:`sample_at` of a ``uint16`` grid at the points ``xy`` (shape (N, 2)).
+
+    A bilinear sample with a value off the grid that is not finite is taken from the whole
+    grid in ``float32`` (OpenCV interpolates ``inf`` into NaN at points of the border, by an
+    order of its own; no caller of this package asks for it)."""
+    if not nearest:
+        if not math.isfinite(outside):
+            whole = field.astype(np.float32)
+            return np.asarray(_remap(whole, xy, cv2.INTER_LINEAR, outside), dtype=np.float32)
+        return _bilinear_whole(field, xy, np.float32(outside))
+    cells = _remap(field, xy, cv2.INTER_NEAREST, _NO_CELL)  # the same cells, as uint16
+    out = cells.astype(np.float32)
+    out[cells == _NO_CELL] = outside
+    return out
+
+
+def _bilinear_whole(
+    field: NDArray[np.uint16], xy: NDArray[np.float32], outside: np.float32
+) -> NDArray[np.float32]:
+    """OpenCV's bilinear samples of ``field`` as ``float32``, from small ``float32`` atlases.
+
+    Each point's four cells are copied, as ``float32`` (``outside`` off the grid), into a
+    patch of its own in a small atlas, and the point is moved onto its patch; one
+    ``cv2.remap`` of the atlas gives the sample. OpenCV splits each coordinate into its
+    whole part (``floor``) and its fraction (``x - floor(x)``) and interpolates the four
+    values by the fractions; so the sample is the same if the moved point has the same
+    fractions, and the same four values, bit for bit, as the original. The moved coordinate
+    ``p + (x - floor(x))`` (``p`` the patch's whole column) is exact in float32 when it is
+    below the power of two above ``x``: a coordinate of at least 1 keeps its fraction exactly
+    if ``p < 2**e`` for ``2**e <= x`` (each point's bucket, :func:`_buckets`, caps its
+    patch's position so); one below 1 (the first row or column, or the border just before
+    it) is not moved at all, and its patch holds the first two rows or columns of the grid
+    where they are. Points whose four cells are all off the grid take ``outside`` (OpenCV
+    interpolates four ``outside`` values there, which gives ``outside`` for a finite one), and
+    so do points with a coordinate that is not finite (OpenCV gives ``outside`` or NaN for
+    them, depending on the points beside them in its vectors; no transform of this package
+    gives such points).
+    """
+    h, w = field.shape
+    x, y = xy[:, 0], xy[:, 1]
+    fx, fy = np.floor(x), np.floor(y)
+    out = np.full(x.shape, outside, dtype=np.float32)
+    # OpenCV's test (NaN fails it): a cell of the four is on the grid
+    near = (fx >= -1) & (fx <= w - 1) & (fy >= -1) & (fy <= h - 1)
+    keys = _buckets(x) * (_TOP_BUCKET + 2) + _buckets(y)
+    if not near.all():
+        keys[~near] = -1
+    elif keys.min() == keys.max():  # one bucket (most often: every point beyond 2**7)
+        bx, by = divmod(int(keys[0]), _TOP_BUCKET + 2)
+        return _bucket_samples(field, x, y, bx - 1, by - 1, outside)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    starts = np.flatnonzero(np.diff(sorted_keys, prepend=np.int16(-2)))
+    ends = np.append(starts[1:], sorted_keys.size)
+    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+        key = int(sorted_keys[a])
+        if key < 0:
+            continue
+        bx, by = divmod(key, _TOP_BUCKET + 2)
+        idx = order[a:b]
+        out[idx] = _bucket_samples(field, x[idx], y[idx], bx - 1, by - 1, outside)
+    return out
+
+
+def _buckets(v: NDArray[np.float32]) -> NDArray[np.int16]:
+    """Per coordinate, 0 below 1, else ``1 + min(e, _TOP_BUCKET)`` for ``2**e <= v < 2**(e+1)``."""
+    _, e = np.frexp(np.maximum(v, np.float32(0.5)))  # v = m 2**e, 0.5 <= m < 1: e - 1 above 1
+    return np.minimum(e, _TOP_BUCKET + 1).astype(np.int16)
+
+
+def _bucket_samples(
+    field: NDArray[np.uint16],
+    x: NDArray[np.float32],
+    y: NDArray[np.float32],
+    ex: int,
+    ey: int,
+    outside: np.float32,
+) -> NDArray[np.float32]:
+    """:func:`_bilinear_whole` of the points of one bucket (``ex``, ``ey``: the exponents
+    of their coordinates' powers of two, capped at :data:`_TOP_BUCKET`; -1 below 1), in
+    atlases of at most ``2**ex`` by ``2**ey`` patches (one patch, the grid's own first
+    cells, in a direction below 1)."""
+    cols = 1 if ex < 0 else 1 << ex
+    rows = 1 if ey < 0 else 1 << ey
+    shared = ex < 0 and ey < 0  # every point reads the same patch: the grid's corner
+    per_atlas = x.size if shared else cols * rows
+    out = np.empty(x.shape, dtype=np.float32)
+    for a in range(0, x.size, per_atlas):
+        part = slice(a, a + per_atlas)
+        out[part] = _atlas_samples(field, x[part], y[part], cols, ex < 0, ey < 0, outside)
+    return out
+
+
+def _atlas_samples(
+    field: NDArray[np.uint16],
+    x: NDArray[np.float32],
+    y: NDArray[np.float32],
+    cols: int,
+    keep_x: bool,
+    keep_y: bool,
+    outside: np.float32,
+) -> NDArray[np.float32]:
+    """One atlas of :func:`_bilinear_whole`: point ``k`` reads the patch ``k`` (row
+    ``k // cols``, column ``k % cols``) of two by two cells; a direction ``keep_*`` is not
+    moved (one patch across, the grid's first two cells of it)."""
+    n = x.size
+    fx, fy = np.floor(x), np.floor(y)
+    ox = np.zeros(n, np.intp) if keep_x else fx.astype(np.intp)
+    oy = np.zeros(n, np.intp) if keep_y else fy.astype(np.intp)
+    patches = _patches(field, oy, ox, outside)  # (n, 2, 2): [k, dy, dx]
+    slot = np.arange(n, dtype=np.int32)
+    if keep_x and keep_y:  # every point reads the grid's corner
+        atlas, sc, sr = patches[0], np.zeros(n, np.int32), np.zeros(n, np.int32)
+    elif keep_x:  # patches down one column
+        atlas, sc, sr = patches.reshape(2 * n, 2), np.zeros(n, np.int32), slot
+    elif keep_y:  # patches along one row
+        atlas = np.ascontiguousarray(patches.transpose(1, 0, 2)).reshape(2, 2 * n)
+        sc, sr = slot, np.zeros(n, np.int32)
+    else:
+        cols = min(cols, n)
+        rows = -(-n // cols)
+        full = np.zeros((rows * cols, 2, 2), dtype=np.float32)
+        full[:n] = patches
+        atlas = np.ascontiguousarray(full.reshape(rows, cols, 2, 2).transpose(0, 2, 1, 3))
+        atlas = atlas.reshape(2 * rows, 2 * cols)
+        sc, sr = slot % cols, slot // cols
+    grid = np.empty((n, 2), dtype=np.float32)
+    # x - floor(x) is exact for x >= 1; the patch's column added is exact (see above)
+    grid[:, 0] = x if keep_x else (x - fx) + (2 * sc).astype(np.float32)
+    grid[:, 1] = y if keep_y else (y - fy) + (2 * sr).astype(np.float32)
+    return np.asarray(_remap(atlas, grid, cv2.INTER_LINEAR, float(outside)), dtype=np.float32)
+
+
+def _patches(
+    field: NDArray[np.uint16], rows: NDArray[np.intp], cols: NDArray[np.intp], outside: np.float32
+) -> NDArray[np.float32]:
+    """The cells ``(rows + dy, cols + dx)`` of ``field``, ``dy, dx`` in ``(0, 1)``, as float32
+    of shape (N, 2, 2), ``outside`` off the grid."""
+    h, w = field.shape
+    flat = field.reshape(-1)  # a view: the maps of compact_distance_map are C-contiguous
+    offsets = np.array([0, 1, w, w + 1], dtype=np.intp)
+    base = rows * w + cols
+    if rows.min() >= 0 and rows.max() < h - 1 and cols.min() >= 0 and cols.max() < w - 1:
+        return flat.take(base[:, None] + offsets).astype(np.float32).reshape(-1, 2, 2)
+    out = np.full((rows.size, 4), outside, dtype=np.float32)
+    for j, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+        r, c = rows + dy, cols + dx
+        on = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        out[on, j] = flat.take(base[on] + offsets[j])
+    return out.reshape(-1, 2, 2)

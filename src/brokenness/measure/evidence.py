@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
+from ..masking.distance import DistanceMap
 from .partitions import Found, owners
 from .views import isolated_points
 
@@ -338,9 +339,7 @@ def _count_known(states: NDArray[np.int8]) -> int:
     )
 
 
-def _clear_free_share(
-    states: NDArray[np.int8], distance: NDArray[np.float32], limit: float
-) -> float:
+def _clear_free_share(states: NDArray[np.int8], distance: DistanceMap, limit: float) -> float:
     """The share of the known cells that are free and farther than ``limit`` from walls
     (counted in bands of rows: no temporary of the grid's size)."""
     known = clear = 0
