@@ -76,6 +76,21 @@ def test_compact_distance_map_holds_the_same_whole_numbers():
     assert compact_distance_map(np.ones((1, 65534), bool)).dtype == np.float32
 
 
+def test_compact_distance_map_beyond_one_byte_and_its_bounds():
+    # distances of 255 and more (past one byte) are kept; the whole-number bounds of a
+    # uint16 map select the same cells as the float comparisons
+    from brokenness.masking.distance import beyond, compact_distance_map, within
+
+    mask = np.zeros((700, 650), bool)
+    mask[3, 5] = mask[690, 640] = mask[350, 20] = True
+    got, exact = compact_distance_map(mask), manhattan_distance_map(mask)
+    assert got.dtype == np.uint16 and got.max() > 255
+    np.testing.assert_array_equal(got, exact)
+    for t in (-1.0, -0.5, 0.0, 0.5, 2.0, 2.7, 300.0, 1e9, np.inf, -np.inf, np.nan):
+        np.testing.assert_array_equal(within(got, t), exact <= t)
+        np.testing.assert_array_equal(beyond(got, t), exact > t)
+
+
 def _sample_points(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
     """Points over the grid and its border, near the first rows and columns and on the
     powers of two and the cells' edges."""

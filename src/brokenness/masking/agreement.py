@@ -24,6 +24,7 @@ from .distance import (
     lookup_distance,
     manhattan_distance_map,
     sample_at,
+    within,
 )
 
 __all__ = [
@@ -199,7 +200,7 @@ def _known_and_near(
     for r in range(0, states.shape[0], _BAND_ROWS):
         known = states[r : r + _BAND_ROWS] != UNKNOWN
         n_known += int(np.count_nonzero(known))
-        known &= distance[r : r + _BAND_ROWS] <= threshold
+        known &= within(distance[r : r + _BAND_ROWS], threshold)
         n_near += int(np.count_nonzero(known))
     return n_known, n_near
 

@@ -8,6 +8,7 @@ the same values in ``float32`` (see :func:`_bilinear_whole`).
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import cast
 
 import cv2
@@ -16,10 +17,12 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "DistanceMap",
+    "beyond",
     "compact_distance_map",
     "lookup_distance",
     "manhattan_distance_map",
     "sample_at",
+    "within",
 ]
 
 #: A distance map as :func:`sample_at` reads it: ``float32``, or whole numbers in ``uint16``.
@@ -92,9 +95,9 @@ def compact_distance_map(mask: ArrayLike) -> DistanceMap:
 
     Notes
     -----
-    The transform runs on the bounding box of the ``True`` cells in ``float32`` (OpenCV's
-    only exact type for it), which is then copied into the ``uint16`` grid and freed: the
-    grid-sized ``float32`` map is never held.
+    The transform runs on the bounding box of the ``True`` cells (:func:`_box_distances`)
+    in ``float32`` (OpenCV's exact type for it), which is then copied into the ``uint16``
+    grid and freed: the grid-sized ``float32`` map is never held.
     """
     m = np.asarray(mask, dtype=bool)
     if sum(m.shape) >= _NO_CELL or not m.any():
@@ -102,13 +105,19 @@ def compact_distance_map(mask: ArrayLike) -> DistanceMap:
     c0, r0, bw, bh = cv2.boundingRect(np.ascontiguousarray(m).view(np.uint8))
     r1, c1 = r0 + bh, c0 + bw
     inner = np.logical_not(m[r0:r1, c0:c1]).view(np.uint8)  # a fresh box of bytes
-    box = cv2.distanceTransform(inner, cv2.DIST_L1, 3)
-    del inner
     out = np.empty(m.shape, dtype=np.uint16)
-    np.copyto(out[r0:r1, c0:c1], box, casting="unsafe")  # whole numbers under 65535
-    del box
+    _box_distances(inner, out[r0:r1, c0:c1])
+    del inner
     _extend_box(out, r0, r1, c0, c1)
     return out
+
+
+def _box_distances(seeds_not: NDArray[np.uint8], out: NDArray[np.uint16]) -> None:
+    """Write into ``out`` the Manhattan distances to the zero cells of ``seeds_not``, by
+    OpenCV's exact ``float32`` transform of the box (freed when copied; its one-byte
+    transform, saturated at 255, is no faster on maps whose distances pass 255)."""
+    box = cv2.distanceTransform(seeds_not, cv2.DIST_L1, 3)
+    np.copyto(out, box, casting="unsafe")  # whole numbers under 65535
 
 
 def _extend_box(out: DistanceMap, r0: int, r1: int, c0: int, c1: int) -> None:
@@ -129,6 +138,27 @@ def _extend_box(out: DistanceMap, r0: int, r1: int, c0: int, c1: int) -> None:
     if r1 < h:  # below
         steps = np.arange(1, h - r1 + 1, dtype=kind)[:, None]
         np.add(out[r1 - 1 : r1], steps, out=out[r1:])
+
+
+def within(distance: DistanceMap, threshold: float) -> NDArray[np.bool_]:
+    """``distance <= threshold``; for a ``uint16`` map (whole numbers) by the whole bound
+    ``floor(threshold)``, the same cells without a wider temporary."""
+    if distance.dtype != np.uint16 or not math.isfinite(threshold):
+        return np.asarray(distance <= threshold)
+    bound = math.floor(threshold)
+    if bound < 0:
+        return np.zeros(distance.shape, dtype=bool)
+    return np.asarray(distance <= np.uint16(min(bound, _NO_CELL)))
+
+
+def beyond(distance: DistanceMap, limit: float) -> NDArray[np.bool_]:
+    """``distance > limit``; for a ``uint16`` map by the whole bound ``floor(limit)``."""
+    if distance.dtype != np.uint16 or not math.isfinite(limit):
+        return np.asarray(distance > limit)
+    bound = math.floor(limit)
+    if bound < 0:
+        return np.ones(distance.shape, dtype=bool)
+    return np.asarray(distance > np.uint16(min(bound, _NO_CELL)))
 
 
 def lookup_distance(distance_map: DistanceMap, points: ArrayLike) -> NDArray[np.float32]:
@@ -267,22 +297,22 @@ def _bilinear_whole(
     out = np.full(x.shape, outside, dtype=np.float32)
     # OpenCV's test (NaN fails it): a cell of the four is on the grid
     near = (fx >= -1) & (fx <= w - 1) & (fy >= -1) & (fy <= h - 1)
-    keys = _buckets(x) * (_TOP_BUCKET + 2) + _buckets(y)
-    if not near.all():
-        keys[~near] = -1
-    elif keys.min() == keys.max():  # one bucket (most often: every point beyond 2**7)
-        bx, by = divmod(int(keys[0]), _TOP_BUCKET + 2)
-        return _bucket_samples(field, x, y, bx - 1, by - 1, outside)
+    top = near & (fx >= 1 << _TOP_BUCKET) & (fy >= 1 << _TOP_BUCKET)  # most points, often all
+    if top.all():
+        return _bucket_samples(field, x, y, _TOP_BUCKET, _TOP_BUCKET, outside)
+    if top.any():
+        out[top] = _bucket_samples(field, x[top], y[top], _TOP_BUCKET, _TOP_BUCKET, outside)
+    rest = np.flatnonzero(near & ~top)
+    if rest.size == 0:
+        return out
+    keys = _buckets(x[rest]) * (_TOP_BUCKET + 2) + _buckets(y[rest])
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
-    starts = np.flatnonzero(np.diff(sorted_keys, prepend=np.int16(-2)))
+    starts = np.flatnonzero(np.diff(sorted_keys, prepend=np.int16(-1)))
     ends = np.append(starts[1:], sorted_keys.size)
     for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
-        key = int(sorted_keys[a])
-        if key < 0:
-            continue
-        bx, by = divmod(key, _TOP_BUCKET + 2)
-        idx = order[a:b]
+        bx, by = divmod(int(sorted_keys[a]), _TOP_BUCKET + 2)
+        idx = rest[order[a:b]]
         out[idx] = _bucket_samples(field, x[idx], y[idx], bx - 1, by - 1, outside)
     return out
 
@@ -307,12 +337,15 @@ def _bucket_samples(
     cells, in a direction below 1)."""
     cols = 1 if ex < 0 else 1 << ex
     rows = 1 if ey < 0 else 1 << ey
-    shared = ex < 0 and ey < 0  # every point reads the same patch: the grid's corner
-    per_atlas = x.size if shared else cols * rows
+    if ex < 0 and ey < 0:  # every point reads the same patch: the grid's corner
+        corner = np.empty((2, 2), dtype=np.float32)
+        zero = np.zeros((1, 1), dtype=np.intp)
+        _fill_patches(corner, field, zero, zero, outside)
+        return np.asarray(_remap(corner, np.column_stack([x, y]), cv2.INTER_LINEAR, float(outside)))
     out = np.empty(x.shape, dtype=np.float32)
-    for a in range(0, x.size, per_atlas):
-        part = slice(a, a + per_atlas)
-        out[part] = _atlas_samples(field, x[part], y[part], cols, ex < 0, ey < 0, outside)
+    for a in range(0, x.size, cols * rows):
+        part = slice(a, a + cols * rows)
+        out[part] = _atlas_samples(field, x[part], y[part], (cols, rows), ex < 0, ey < 0, outside)
     return out
 
 
@@ -320,56 +353,71 @@ def _atlas_samples(
     field: NDArray[np.uint16],
     x: NDArray[np.float32],
     y: NDArray[np.float32],
-    cols: int,
+    capacity: tuple[int, int],
     keep_x: bool,
     keep_y: bool,
     outside: np.float32,
 ) -> NDArray[np.float32]:
-    """One atlas of :func:`_bilinear_whole`: point ``k`` reads the patch ``k`` (row
-    ``k // cols``, column ``k % cols``) of two by two cells; a direction ``keep_*`` is not
-    moved (one patch across, the grid's first two cells of it)."""
+    """One atlas of :func:`_bilinear_whole`, of at most ``capacity`` (columns, rows)
+    patches of two by two cells: point ``k`` reads the patch ``k`` (row ``k // cols``,
+    column ``k % cols``); a direction ``keep_*`` is not moved (one patch across, the grid's
+    first two cells of it)."""
     n = x.size
     fx, fy = np.floor(x), np.floor(y)
-    ox = np.zeros(n, np.intp) if keep_x else fx.astype(np.intp)
-    oy = np.zeros(n, np.intp) if keep_y else fy.astype(np.intp)
-    patches = _patches(field, oy, ox, outside)  # (n, 2, 2): [k, dy, dx]
-    slot = np.arange(n, dtype=np.int32)
-    if keep_x and keep_y:  # every point reads the grid's corner
-        atlas, sc, sr = patches[0], np.zeros(n, np.int32), np.zeros(n, np.int32)
-    elif keep_x:  # patches down one column
-        atlas, sc, sr = patches.reshape(2 * n, 2), np.zeros(n, np.int32), slot
-    elif keep_y:  # patches along one row
-        atlas = np.ascontiguousarray(patches.transpose(1, 0, 2)).reshape(2, 2 * n)
-        sc, sr = slot, np.zeros(n, np.int32)
-    else:
-        cols = min(cols, n)
-        rows = -(-n // cols)
-        full = np.zeros((rows * cols, 2, 2), dtype=np.float32)
-        full[:n] = patches
-        atlas = np.ascontiguousarray(full.reshape(rows, cols, 2, 2).transpose(0, 2, 1, 3))
-        atlas = atlas.reshape(2 * rows, 2 * cols)
-        sc, sr = slot % cols, slot // cols
+    cols = min(capacity[0], n)
+    rows = -(-n // cols)
+    # each patch's first cell in the grid; the last row of patches filled up with copies
+    # of the last one (read by no point)
+    ox = np.zeros(rows * cols, np.intp)
+    oy = np.zeros(rows * cols, np.intp)
+    if not keep_x:
+        ox[:n] = fx
+        ox[n:] = ox[n - 1]
+    if not keep_y:
+        oy[:n] = fy
+        oy[n:] = oy[n - 1]
+    atlas = np.empty((2 * rows, 2 * cols), dtype=np.float32)
+    _fill_patches(atlas, field, oy.reshape(rows, cols), ox.reshape(rows, cols), outside)
+    px, py = _slot_positions(cols, capacity[0] * capacity[1])
     grid = np.empty((n, 2), dtype=np.float32)
     # x - floor(x) is exact for x >= 1; the patch's column added is exact (see above)
-    grid[:, 0] = x if keep_x else (x - fx) + (2 * sc).astype(np.float32)
-    grid[:, 1] = y if keep_y else (y - fy) + (2 * sr).astype(np.float32)
+    grid[:, 0] = x if keep_x else (x - fx) + px[:n]
+    grid[:, 1] = y if keep_y else (y - fy) + py[:n]
     return np.asarray(_remap(atlas, grid, cv2.INTER_LINEAR, float(outside)), dtype=np.float32)
 
 
-def _patches(
-    field: NDArray[np.uint16], rows: NDArray[np.intp], cols: NDArray[np.intp], outside: np.float32
-) -> NDArray[np.float32]:
-    """The cells ``(rows + dy, cols + dx)`` of ``field``, ``dy, dx`` in ``(0, 1)``, as float32
-    of shape (N, 2, 2), ``outside`` off the grid."""
+@lru_cache(maxsize=32)
+def _slot_positions(cols: int, count: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """The first column and row, in an atlas, of each of ``count`` patches ``cols`` across
+    (float32, read-only)."""
+    slot = np.arange(count)
+    px = (2 * (slot % cols)).astype(np.float32)
+    py = (2 * (slot // cols)).astype(np.float32)
+    px.flags.writeable = py.flags.writeable = False
+    return px, py
+
+
+def _fill_patches(
+    atlas: NDArray[np.float32],
+    field: NDArray[np.uint16],
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
+    outside: np.float32,
+) -> None:
+    """Fill the ``atlas`` of ``rows.shape`` patches: patch ``(i, j)`` holds the cells
+    ``(rows[i, j] + dy, cols[i, j] + dx)`` of ``field``, ``dy, dx`` in ``(0, 1)``, as float32
+    (``outside`` off the grid), at ``(2 i + dy, 2 j + dx)``."""
     h, w = field.shape
     flat = field.reshape(-1)  # a view: the maps of compact_distance_map are C-contiguous
-    offsets = np.array([0, 1, w, w + 1], dtype=np.intp)
+    view = atlas.reshape(rows.shape[0], 2, rows.shape[1], 2)  # [i, dy, j, dx]
     base = rows * w + cols
-    if rows.min() >= 0 and rows.max() < h - 1 and cols.min() >= 0 and cols.max() < w - 1:
-        return flat.take(base[:, None] + offsets).astype(np.float32).reshape(-1, 2, 2)
-    out = np.full((rows.size, 4), outside, dtype=np.float32)
-    for j, (dy, dx) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
-        r, c = rows + dy, cols + dx
-        on = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        out[on, j] = flat.take(base[on] + offsets[j])
-    return out.reshape(-1, 2, 2)
+    inside = rows.min() >= 0 and rows.max() < h - 1 and cols.min() >= 0 and cols.max() < w - 1
+    for dy in (0, 1):
+        for dx in (0, 1):
+            if inside:  # one gather a corner, written in place
+                view[:, dy, :, dx] = flat.take(base + (dy * w + dx))
+                continue
+            on = (rows + dy >= 0) & (rows + dy < h) & (cols + dx >= 0) & (cols + dx < w)
+            corner = np.full(rows.shape, outside, dtype=np.float32)
+            corner[on] = flat.take(base[on] + (dy * w + dx))
+            view[:, dy, :, dx] = corner
