@@ -292,16 +292,19 @@ def _bilinear_whole(
     gives such points).
     """
     h, w = field.shape
-    x, y = xy[:, 0], xy[:, 1]
+    x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
     fx, fy = np.floor(x), np.floor(y)
+    low = 1 << _TOP_BUCKET
+    # most often every point is in the top bucket and its four cells on the grid (NaN fails)
+    if min(fx.min(), fy.min()) >= low and fx.max() <= w - 1 and fy.max() <= h - 1:
+        return _bucket_samples(field, (x, y, fx, fy), _TOP_BUCKET, _TOP_BUCKET, outside)
     out = np.full(x.shape, outside, dtype=np.float32)
     # OpenCV's test (NaN fails it): a cell of the four is on the grid
     near = (fx >= -1) & (fx <= w - 1) & (fy >= -1) & (fy <= h - 1)
-    top = near & (fx >= 1 << _TOP_BUCKET) & (fy >= 1 << _TOP_BUCKET)  # most points, often all
-    if top.all():
-        return _bucket_samples(field, x, y, _TOP_BUCKET, _TOP_BUCKET, outside)
+    top = near & (fx >= low) & (fy >= low)
     if top.any():
-        out[top] = _bucket_samples(field, x[top], y[top], _TOP_BUCKET, _TOP_BUCKET, outside)
+        part = (x[top], y[top], fx[top], fy[top])
+        out[top] = _bucket_samples(field, part, _TOP_BUCKET, _TOP_BUCKET, outside)
     rest = np.flatnonzero(near & ~top)
     if rest.size == 0:
         return out
@@ -313,7 +316,8 @@ def _bilinear_whole(
     for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
         bx, by = divmod(int(sorted_keys[a]), _TOP_BUCKET + 2)
         idx = rest[order[a:b]]
-        out[idx] = _bucket_samples(field, x[idx], y[idx], bx - 1, by - 1, outside)
+        part = (x[idx], y[idx], fx[idx], fy[idx])
+        out[idx] = _bucket_samples(field, part, bx - 1, by - 1, outside)
     return out
 
 
@@ -323,18 +327,18 @@ def _buckets(v: NDArray[np.float32]) -> NDArray[np.int16]:
     return np.minimum(e, _TOP_BUCKET + 1).astype(np.int16)
 
 
+#: Points as :func:`_bilinear_whole` passes them on: ``x``, ``y`` and their floors.
+_Points = tuple[NDArray[np.float32], NDArray[np.float32], NDArray[np.float32], NDArray[np.float32]]
+
+
 def _bucket_samples(
-    field: NDArray[np.uint16],
-    x: NDArray[np.float32],
-    y: NDArray[np.float32],
-    ex: int,
-    ey: int,
-    outside: np.float32,
+    field: NDArray[np.uint16], points: _Points, ex: int, ey: int, outside: np.float32
 ) -> NDArray[np.float32]:
-    """:func:`_bilinear_whole` of the points of one bucket (``ex``, ``ey``: the exponents
-    of their coordinates' powers of two, capped at :data:`_TOP_BUCKET`; -1 below 1), in
-    atlases of at most ``2**ex`` by ``2**ey`` patches (one patch, the grid's own first
-    cells, in a direction below 1)."""
+    """:func:`_bilinear_whole` of the ``points`` of one bucket (``ex``, ``ey``: the
+    exponents of their coordinates' powers of two, capped at :data:`_TOP_BUCKET`; -1 below
+    1), in atlases of at most ``2**ex`` by ``2**ey`` patches (one patch, the grid's own
+    first cells, in a direction below 1)."""
+    x, y = points[0], points[1]
     cols = 1 if ex < 0 else 1 << ex
     rows = 1 if ey < 0 else 1 << ey
     if ex < 0 and ey < 0:  # every point reads the same patch: the grid's corner
@@ -342,28 +346,30 @@ def _bucket_samples(
         zero = np.zeros((1, 1), dtype=np.intp)
         _fill_patches(corner, field, zero, zero, outside)
         return np.asarray(_remap(corner, np.column_stack([x, y]), cv2.INTER_LINEAR, float(outside)))
+    if x.size <= cols * rows:
+        return _atlas_samples(field, points, (cols, rows), (ex < 0, ey < 0), outside)
     out = np.empty(x.shape, dtype=np.float32)
     for a in range(0, x.size, cols * rows):
         part = slice(a, a + cols * rows)
-        out[part] = _atlas_samples(field, x[part], y[part], (cols, rows), ex < 0, ey < 0, outside)
+        chunk = (x[part], y[part], points[2][part], points[3][part])
+        out[part] = _atlas_samples(field, chunk, (cols, rows), (ex < 0, ey < 0), outside)
     return out
 
 
 def _atlas_samples(
     field: NDArray[np.uint16],
-    x: NDArray[np.float32],
-    y: NDArray[np.float32],
+    points: _Points,
     capacity: tuple[int, int],
-    keep_x: bool,
-    keep_y: bool,
+    keep: tuple[bool, bool],
     outside: np.float32,
 ) -> NDArray[np.float32]:
     """One atlas of :func:`_bilinear_whole`, of at most ``capacity`` (columns, rows)
     patches of two by two cells: point ``k`` reads the patch ``k`` (row ``k // cols``,
-    column ``k % cols``); a direction ``keep_*`` is not moved (one patch across, the grid's
-    first two cells of it)."""
+    column ``k % cols``); a direction ``keep`` (x, y) is not moved (one patch across, the
+    grid's first two cells of it)."""
+    x, y, fx, fy = points
+    keep_x, keep_y = keep
     n = x.size
-    fx, fy = np.floor(x), np.floor(y)
     cols = min(capacity[0], n)
     rows = -(-n // cols)
     # each patch's first cell in the grid; the last row of patches filled up with copies
