@@ -38,10 +38,12 @@ __all__ = [
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
-#: References of more than this many cells keep their Manhattan distance map in two bytes a
-#: cell (:func:`~brokenness.masking.distance.compact_distance_map`; the same samples, bit for
-#: bit, a little slower to look up), smaller ones in float32.
-COMPACT_CELLS = 4_000_000
+#: References of more than this many cells (about 5657², whose float32 map is 128 MB) keep
+#: their Manhattan distance map in two bytes a cell
+#: (:func:`~brokenness.masking.distance.compact_distance_map`: the same samples, bit for bit,
+#: but its bilinear ones cost about five times a float32 lookup, 20 % of the call at 3500²
+#: and 1-5 % at 8000² and 10000²), smaller ones in float32.
+COMPACT_CELLS = 32_000_000
 #: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
 _BAND_ROWS = 512
 #: Manhattan balls of up to this many cells are cleared cell by cell (radius 3: 25 cells).
