@@ -279,17 +279,17 @@ def _bilinear_whole(
     ``cv2.remap`` of the atlas gives the sample. OpenCV splits each coordinate into its
     whole part (``floor``) and its fraction (``x - floor(x)``) and interpolates the four
     values by the fractions; so the sample is the same if the moved point has the same
-    fractions, and the same four values, bit for bit, as the original. The moved coordinate
-    ``p + (x - floor(x))`` (``p`` the patch's whole column) is exact in float32 when it is
-    below the power of two above ``x``: a coordinate of at least 1 keeps its fraction exactly
-    if ``p < 2**e`` for ``2**e <= x`` (each point's bucket, :func:`_buckets`, caps its
-    patch's position so); one below 1 (the first row or column, or the border just before
-    it) is not moved at all, and its patch holds the first two rows or columns of the grid
-    where they are. Points whose four cells are all off the grid take ``outside`` (OpenCV
-    interpolates four ``outside`` values there, which gives ``outside`` for a finite one), and
-    so do points with a coordinate that is not finite (OpenCV gives ``outside`` or NaN for
-    them, depending on the points beside them in its vectors; no transform of this package
-    gives such points).
+    fractions, and the same four values, bit for bit, as the original. For ``2**e <= x``,
+    the moved coordinate ``p + (x - floor(x))`` (``p`` the patch's whole column) is exact in
+    float32 when it stays under ``2**(e+1)``, where float32 is no coarser than at ``x``
+    (``x - floor(x)`` is exact for ``x >= 1``): each point's bucket (:func:`_buckets`) caps
+    its patch's column at ``2**(e+1) - 2``, and the same for rows. A coordinate below 1 (the
+    first row or column, or the border just before it) is not moved at all, and its patch
+    holds the first two rows or columns of the grid where they are. Points whose four cells
+    are all off the grid take ``outside`` (OpenCV interpolates four ``outside`` values there,
+    which gives ``outside`` for a finite one), and so do points with a coordinate that is
+    not finite (OpenCV gives ``outside`` or NaN for them, depending on the points beside
+    them in its vectors; no transform of this package gives such points).
     """
     h, w = field.shape
     x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
