@@ -55,6 +55,88 @@ def test_lookup_distance_rounds_and_is_inf_outside():
     assert out[0] == 0 and out[1] == 2 and np.isinf(out[2]) and np.isinf(out[3])
 
 
+def test_compact_distance_map_holds_the_same_whole_numbers():
+    from brokenness.masking.distance import compact_distance_map
+
+    rng = np.random.default_rng(11)
+    for shape, box in [
+        ((60, 80), (20, 31, 45, 52)),
+        ((30, 30), (0, 30, 0, 30)),
+        ((1, 9), (0, 1, 4, 5)),
+    ]:
+        mask = np.zeros(shape, bool)
+        r0, r1, c0, c1 = box
+        mask[r0:r1, c0:c1] = rng.random((r1 - r0, c1 - c0)) < 0.2
+        mask[r0, c0] = True
+        got = compact_distance_map(mask)
+        assert got.dtype == np.uint16 and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, manhattan_distance_map(mask))
+    # a grid of 65535 rows plus columns or more, or no cell, keeps float32
+    assert compact_distance_map(np.zeros((3, 3), bool)).dtype == np.float32
+    assert compact_distance_map(np.ones((1, 65534), bool)).dtype == np.float32
+
+
+def test_compact_distance_map_beyond_one_byte_and_its_bounds():
+    # distances of 255 and more (past one byte) are kept; the whole-number bounds of a
+    # uint16 map select the same cells as the float comparisons
+    from brokenness.masking.distance import beyond, compact_distance_map, within
+
+    mask = np.zeros((700, 650), bool)
+    mask[3, 5] = mask[690, 640] = mask[350, 20] = True
+    got, exact = compact_distance_map(mask), manhattan_distance_map(mask)
+    assert got.dtype == np.uint16 and got.max() > 255
+    np.testing.assert_array_equal(got, exact)
+    for t in (-1.0, -0.5, 0.0, 0.5, 2.0, 2.7, 300.0, 1e9, np.inf, -np.inf, np.nan):
+        np.testing.assert_array_equal(within(got, t), exact <= t)
+        np.testing.assert_array_equal(beyond(got, t), exact > t)
+
+
+def _sample_points(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    """Points over the grid and its border, near the first rows and columns and on the
+    powers of two and the cells' edges."""
+    h, w = shape
+    spread = np.column_stack([rng.uniform(-3, w + 3, 20000), rng.uniform(-3, h + 3, 20000)])
+    corner = rng.uniform(-1.5, 3.0, (4000, 2))
+    edges = np.array(
+        [[0, 0], [-1, -1], [-0.5, 0.25], [0.25, -0.5], [w - 1, h - 1], [w - 0.5, h - 0.5],
+         [w, h], [-1e-9, 0.5], [1e-30, 1e-30], [1e10, 2], [1, 1], [2, 2], [127.99999, 128.00001],
+         [255.999, 3.5], [w - 1e-4, 0.5], [0.5, h - 1e-4]]
+    )  # fmt: skip
+    return np.vstack([spread, corner, edges, rng.uniform(100, 300, (4000, 2))])
+
+
+@pytest.mark.parametrize("shape", [(300, 300), (40, 700), (1, 50), (2, 2), (3, 1), (500, 900)])
+def test_sample_at_reads_a_uint16_map_as_its_float32_values(shape):
+    # bilinear and nearest samples, bit for bit, on and off the grid (cv2.remap's own border)
+    from brokenness.masking import sample_at
+    from brokenness.masking.distance import compact_distance_map
+
+    rng = np.random.default_rng(sum(shape))
+    mask = np.zeros(shape, bool)
+    mask[rng.integers(0, shape[0], 30), rng.integers(0, shape[1], 30)] = True
+    exact, compact = manhattan_distance_map(mask), compact_distance_map(mask)
+    assert compact.dtype == np.uint16
+    points = _sample_points(rng, shape)
+    for pts in (points, points[:5], points[-4000:].reshape(2, 2000, 2)):
+        for outside in (3.0, 1002.5, np.inf):
+            for nearest in (False, True):
+                a = sample_at(exact, pts, outside, nearest=nearest)
+                b = sample_at(compact, pts, outside, nearest=nearest)
+                assert a.shape == b.shape and b.dtype == np.float32
+                np.testing.assert_array_equal(a, b)
+
+
+def test_reference_index_keeps_large_maps_compact(monkeypatch):
+    import brokenness.masking.agreement as agreement
+
+    ref = OccupancyMap.from_array(_room())
+    assert ReferenceIndex.build(ref).occupied_distance.dtype == np.float32
+    monkeypatch.setattr(agreement, "COMPACT_CELLS", 0)
+    index = ReferenceIndex.build(ref)
+    assert index.occupied_distance.dtype == np.uint16
+    np.testing.assert_array_equal(index.occupied_distance, manhattan_distance_map(ref.occupied))
+
+
 def test_picture_distance_zero_on_itself_and_grows_with_shift():
     room = OccupancyMap.from_array(_room())
     assert picture_distance(room, room) == 0.0

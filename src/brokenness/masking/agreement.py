@@ -18,7 +18,14 @@ from scipy.spatial import cKDTree
 
 from ..errors import MapError
 from ..grid import UNKNOWN, OccupancyMap
-from .distance import lookup_distance, manhattan_distance_map, sample_at
+from .distance import (
+    DistanceMap,
+    compact_distance_map,
+    lookup_distance,
+    manhattan_distance_map,
+    sample_at,
+    within,
+)
 
 __all__ = [
     "ReferenceIndex",
@@ -31,6 +38,12 @@ __all__ = [
 
 #: References of up to this many cells use a nearest-cell lookup table, larger ones a KD-tree.
 _LOOKUP_TABLE_CELLS = 4_000_000
+#: References of more than this many cells (about 5657², whose float32 map is 128 MB) keep
+#: their Manhattan distance map in two bytes a cell
+#: (:func:`~brokenness.masking.distance.compact_distance_map`: the same samples, bit for bit,
+#: but its bilinear ones cost about five times a float32 lookup, 20 % of the call at 3500²
+#: and 1-5 % at 8000² and 10000²), smaller ones in float32.
+COMPACT_CELLS = 32_000_000
 #: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
 _BAND_ROWS = 512
 #: Manhattan balls of up to this many cells are cleared cell by cell (radius 3: 25 cells).
@@ -57,14 +70,15 @@ class ReferenceIndex:
     Attributes
     ----------
     reference : OccupancyMap
-    occupied_distance : ndarray of float32
-        Manhattan distance map to the nearest occupied reference cell.
+    occupied_distance : ndarray of float32 or uint16
+        Manhattan distance map to the nearest occupied reference cell (whole numbers; in
+        ``uint16`` for references of more than :data:`COMPACT_CELLS` cells).
     occupied_points : ndarray, shape (N, 2)
         Coordinates of the occupied reference cells.
     """
 
     reference: OccupancyMap
-    occupied_distance: NDArray[np.float32]
+    occupied_distance: DistanceMap
     occupied_points: NDArray[np.float64]
 
     @classmethod
@@ -80,9 +94,12 @@ class ReferenceIndex:
         if not occupied.any():
             raise MapError("the reference map has no occupied cell")
         points = cell_points(occupied)
+        compact = occupied.size > COMPACT_CELLS
         index = cls(
             reference=reference,
-            occupied_distance=manhattan_distance_map(occupied),
+            occupied_distance=(
+                compact_distance_map(occupied) if compact else manhattan_distance_map(occupied)
+            ),
             occupied_points=points,
         )
         index.__dict__["occupied"] = occupied  # the cached property, already at hand
@@ -177,7 +194,7 @@ class ReferenceIndex:
 
 
 def _known_and_near(
-    states: NDArray[np.int8], distance: NDArray[np.float32], threshold: float
+    states: NDArray[np.int8], distance: DistanceMap, threshold: float
 ) -> tuple[int, int]:
     """The known cells of ``states`` and those of them within ``threshold`` of ``distance``,
     counted in bands of rows (no temporary of the grid's size)."""
@@ -185,7 +202,7 @@ def _known_and_near(
     for r in range(0, states.shape[0], _BAND_ROWS):
         known = states[r : r + _BAND_ROWS] != UNKNOWN
         n_known += int(np.count_nonzero(known))
-        known &= distance[r : r + _BAND_ROWS] <= threshold
+        known &= within(distance[r : r + _BAND_ROWS], threshold)
         n_near += int(np.count_nonzero(known))
     return n_known, n_near
 

@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
+from ..masking.distance import DistanceMap, beyond
 from .partitions import Found, owners
 from .views import isolated_points
 
@@ -326,7 +327,7 @@ def wall_contradiction(
         x, y = x[inside], y[inside]
         landed = states[y, x]
         counted += int(np.count_nonzero(landed != UNKNOWN))
-        contradicting += int(np.count_nonzero((landed == FREE) & (distance[y, x] > limit)))
+        contradicting += int(np.count_nonzero((landed == FREE) & beyond(distance[y, x], limit)))
     return WallContradiction(counted, contradicting, chance)
 
 
@@ -338,14 +339,13 @@ def _count_known(states: NDArray[np.int8]) -> int:
     )
 
 
-def _clear_free_share(
-    states: NDArray[np.int8], distance: NDArray[np.float32], limit: float
-) -> float:
+def _clear_free_share(states: NDArray[np.int8], distance: DistanceMap, limit: float) -> float:
     """The share of the known cells that are free and farther than ``limit`` from walls
     (counted in bands of rows: no temporary of the grid's size)."""
     known = clear = 0
     for r0 in range(0, states.shape[0], _BAND_ROWS):
         band = states[r0 : r0 + _BAND_ROWS]
         known += int(np.count_nonzero(band != UNKNOWN))
-        clear += int(np.count_nonzero((band == FREE) & (distance[r0 : r0 + _BAND_ROWS] > limit)))
+        far = beyond(distance[r0 : r0 + _BAND_ROWS], limit)
+        clear += int(np.count_nonzero((band == FREE) & far))
     return clear / known if known else 0.0

@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from ..masking.distance import sample_at
+from ..masking.distance import DistanceMap, sample_at
 from ..transform import RigidTransform
 
 __all__ = [
@@ -120,7 +120,7 @@ def refine_transform(
 def sweep_rotation(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    distance_map: NDArray[np.float32],
+    distance_map: DistanceMap,
     threshold: float,
     pivot: NDArray[np.float64],
     *,
@@ -141,7 +141,7 @@ def sweep_rotation(
         Starting estimate.
     points : ndarray, shape (N, 2)
         Map cells.
-    distance_map : ndarray of float32
+    distance_map : ndarray of float32 or uint16
         The reference's Manhattan distance map.
     threshold : float
         Threshold of :func:`soft_agreement`.
@@ -179,7 +179,7 @@ def _turned(
 
 
 def _soft_scores(
-    distance_map: NDArray[np.float32], moved: NDArray[np.floating], threshold: float
+    distance_map: DistanceMap, moved: NDArray[np.floating], threshold: float
 ) -> NDArray[np.float64]:
     """:func:`soft_agreement` of each set of moved points, ``moved`` of shape (K, N, 2)."""
     d = sample_at(distance_map, moved, threshold + 1.0)  # shape (K, N)
@@ -187,7 +187,7 @@ def _soft_scores(
 
 
 def soft_agreement(
-    distance_map: NDArray[np.float32], moved: NDArray[np.float64], threshold: float
+    distance_map: DistanceMap, moved: NDArray[np.float64], threshold: float
 ) -> float:
     """Smooth version of the agreement count: ``sum(max(0, threshold + 1 - d))``.
 
@@ -198,7 +198,7 @@ def soft_agreement(
 
 
 def soft_agreements(
-    distance_map: NDArray[np.float32],
+    distance_map: DistanceMap,
     transforms: list[RigidTransform],
     points: NDArray[np.float64],
     threshold: float,
@@ -214,7 +214,7 @@ def soft_agreements(
 def polish_transform(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    distance_map: NDArray[np.float32],
+    distance_map: DistanceMap,
     threshold: float,
     *,
     max_points: int = 8000,

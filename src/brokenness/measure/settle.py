@@ -74,6 +74,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..masking import ReferenceIndex
+from ..masking.distance import within
 from ..transform import RigidTransform
 from .options import Settings
 from .partitions import Found, merge_target, reassign
@@ -470,8 +471,8 @@ def _shift_search(
         return None
     width = int(x1 - x0)
     window = np.zeros((int(y1 - y0), width), dtype=bool)  # the agreement mask, zero outside
-    window[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0] = (
-        index.occupied_distance[cy0:cy1, cx0:cx1] <= threshold
+    window[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0] = within(
+        index.occupied_distance[cy0:cy1, cx0:cx1], threshold
     )
     flat = window.ravel()
     at = (moved[:, 1] - y0) * width + (moved[:, 0] - x0)
