@@ -493,8 +493,10 @@ def _running(pid: int) -> bool:
 
 def test_ctrl_c_drains_the_workers_before_the_summary(tmp_path):
     manifest = tmp_path / "runs.csv"
-    # enough pairs that the batch cannot finish between its first result and the signal
-    pairs = 40
+    # enough pairs that the batch cannot finish between its first result and the signal,
+    # also when this test's process gets little CPU (40 pairs were done before the signal
+    # once, with the suite and two benchmarks' workers sharing the machine's 2 cores)
+    pairs = 200
     manifest.write_text(
         "map,reference,k\n" + "".join(f"{MAP},{REFERENCE},{k}\n" for k in range(pairs))
     )
