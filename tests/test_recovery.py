@@ -204,9 +204,10 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space():
     part = Found(right_t, np.flatnonzero(taken), 1.0, 0.0)
     grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
     assert len(grown) == 2
+    before = recovery.contradiction(found, points, broken, index, SETTINGS.threshold)
     clears = recovery._clears_free_space
-    assert clears(found, grown, points, broken, index, SETTINGS)
+    assert clears(before, grown, points, broken, index, SETTINGS)
     centre = points[taken].mean(axis=0)
     turned = RigidTransform(np.pi / 2).compose(RigidTransform(0.0, *(-centre))).compose(right_t)
     wrong = [*found, Found(RigidTransform(0.0, *centre).compose(turned), part.members, 1.0, 0.0)]
-    assert not clears(found, wrong, points, broken, index, SETTINGS)
+    assert not clears(before, wrong, points, broken, index, SETTINGS)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -119,6 +119,21 @@ def _refinements(
     return [(option, float(v)) for option, v in zip(options, scores, strict=True)]
 
 
+def rivals(
+    candidates: Sequence[Candidate], sample: NDArray[np.float64], best: RigidTransform, apart: float
+) -> list[tuple[Candidate, NDArray[np.float64]]]:
+    """The candidates that put ``sample`` (on average) more than ``apart`` cells from where
+    ``best`` does (not the best hypothesis itself, nor a copy of it), each with ``sample``
+    moved by it."""
+    at_best = best.apply(sample)
+    out = []
+    for c in candidates:
+        moved = c.transform.apply(sample)
+        if float(np.linalg.norm(moved - at_best, axis=1).mean()) > apart:
+            out.append((c, moved))
+    return out
+
+
 def rival_chance(
     candidates: list[Any],
     points: NDArray[np.float64],
@@ -145,13 +160,10 @@ def rival_chance(
     sample = _sample(points)
     if sample.shape[0] == 0:
         return p0
-    at_best = best.apply(sample)
-    shares = []
-    for c in _rigid(candidates):
-        moved = c.transform.apply(sample)
-        if float(np.linalg.norm(moved - at_best, axis=1).mean()) <= apart:
-            continue  # the best hypothesis itself, or a copy of it
-        shares.append(np.count_nonzero(index.occupied_agreement(moved, threshold)))
+    shares = [
+        np.count_nonzero(index.occupied_agreement(moved, threshold))
+        for _, moved in rivals(_rigid(candidates), sample, best, apart)
+    ]
     if not shares:
         return p0
     rival = float(np.quantile(np.asarray(shares, dtype=np.float64), RIVAL_QUANTILE))

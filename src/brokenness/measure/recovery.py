@@ -77,8 +77,8 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .evidence import contradiction
-from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance
+from .evidence import Contradiction, contradiction
+from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
 from .views import candidates_of, exhausted, moving_remainder, occupied_count
@@ -472,15 +472,17 @@ def recover(
             if new is not None:
                 break
         rivals += [shortfall.transform for shortfall in short]
-        grown = None
+        grown, before = None, None
         for shortfall in short if new is None else ():  # counted over the whole map instead
             taken = search.taken_partition(found, shortfall)
             if taken is None:
                 continue
             grown = reassign([*found, taken], points, index, threshold, min_cells)
-            if len(grown) > len(found) and _clears_free_space(
-                found, grown, points, working, index, settings
-            ):
+            if len(grown) <= len(found):
+                continue
+            if before is None:
+                before = contradiction(found, points, working, index, threshold)
+            if _clears_free_space(before, grown, points, working, index, settings):
                 new = taken
                 break
         if new is None:
@@ -502,16 +504,17 @@ def recover(
 
 
 def _clears_free_space(
-    found: list[Found],
+    before: Contradiction,
     grown: list[Found],
     points: NDArray[np.float64],
     working: OccupancyMap,
     index: ReferenceIndex,
     settings: Settings,
 ) -> bool:
-    """Whether the partitions ``grown`` (``found`` and, last, a partition taken over the
+    """Whether the partitions ``grown`` (those found and, last, a partition taken over the
     whole map) make the map's free space cross the reference's walls significantly less
-    often than ``found`` do (:func:`~brokenness.measure.evidence.contradiction`).
+    often than those found did (``before``, their
+    :func:`~brokenness.measure.evidence.contradiction`).
 
     The test of a partition counted by the cells it takes (step 5 of the module docstring):
     the free space in front of the walls of a part that is truly off lands on reference walls
@@ -523,7 +526,6 @@ def _clears_free_space(
     must exceed ``z`` standard deviations of the difference of those two Poisson counts,
     ``z sqrt(fall + 2 x_new)``.
     """
-    before = contradiction(found, points, working, index, settings.threshold)
     after = contradiction(grown, points, working, index, settings.threshold)
     fall = int(before.contradicting.sum()) - int(after.contradicting.sum())
     x_new = int(after.contradicting[-1])
@@ -634,8 +636,6 @@ class _Search:
         if k < settings.min_cells:
             return None
         n = pts.shape[0]
-        sample = pts[:: max(1, n // 200)]
-        at_best = transform.apply(sample)
         shares = [
             np.count_nonzero(
                 taken_cells(
@@ -643,8 +643,7 @@ class _Search:
                 )
             )
             / n
-            for c in candidates
-            if float(np.linalg.norm(c.transform.apply(sample) - at_best, axis=1).mean()) > loose
+            for c, _ in rivals(candidates, pts[:: max(1, n // 200)], transform, loose)
         ]
         p_take = float(np.quantile(shares, RIVAL_QUANTILE)) if shares else self.p0
         chance, _, needed = settings.needed(n, min(p_take, self.p0))
