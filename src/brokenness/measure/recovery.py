@@ -89,8 +89,10 @@ __all__ = [
     "SUPPORT_SHARE",
     "agreement_support",
     "drop_incoherent",
+    "neighbourhood_counts",
     "occupied_around",
     "recover",
+    "taken_cells",
 ]
 
 #: Half-width (cells) of the square window in which a cell's support is counted
