@@ -98,3 +98,26 @@ def test_cli_compare_plot_file(runs, tmp_path):
     out = tmp_path / "p.png"
     assert main(["compare", str(runs), "--plot", str(out), "--dpi", "50", "-q"]) == 0
     assert out.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_results_overlay_picks_the_picture_in_the_zip(tmp_path):
+    """compute --results-overlay: the zip's overlay.png is the matplotlib figure by default,
+    the batch's raster picture with ``fast`` (the same bytes as fast_overlay_png) and absent
+    with ``none``; the result itself is the same."""
+    from brokenness import compute_brokenness, load_map
+    from brokenness.report.fast_overlay import fast_overlay_png
+    from brokenness.report.results import load_results
+
+    records = {}
+    for kind in ("figure", "fast", "none"):
+        zip_path = tmp_path / f"{kind}.zip"
+        args = ["compute", str(EXAMPLE), str(REFERENCE), "-q", "--save-results", str(zip_path)]
+        extra = [] if kind == "figure" else ["--results-overlay", kind]
+        assert main([*args, *extra]) == 0
+        records[kind] = load_results(zip_path)
+    m, ref = load_map(EXAMPLE), load_map(REFERENCE)
+    assert records["fast"].overlay_png == fast_overlay_png(compute_brokenness(m, ref), m, ref)
+    assert records["figure"].overlay_png.startswith(b"\x89PNG")
+    assert records["figure"].overlay_png != records["fast"].overlay_png
+    assert records["none"].overlay_png == b""
+    assert len({r.stats["degree"] for r in records.values()}) == 1
