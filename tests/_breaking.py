@@ -27,6 +27,11 @@ def building_31_corner(side: int = 520) -> OccupancyMap:
     return OccupancyMap(states, m.resolution, (0.0, 0.0, 0.0))
 
 
+def median_error(t: RigidTransform, truth: RigidTransform, pts: np.ndarray) -> float:
+    """Median distance (cells) between where ``t`` and ``truth`` put ``pts``."""
+    return float(np.median(t.displacement(truth, pts)))
+
+
 def move_about(
     center: tuple[float, float], degrees: float, shift: tuple[float, float]
 ) -> RigidTransform:

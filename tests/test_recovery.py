@@ -143,7 +143,7 @@ def test_consolidate_joins_one_rigid_piece_and_keeps_two_apart():
 
 
 @pytest.mark.parametrize("shift", [(0.0, 12.0), (12.0, 0.0)])
-def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
+def test_a_part_shifted_along_its_walls_takes_its_own_region(shift, corner, corner_index):
     """A pure-shift bump: the right part of building 31 (a fifth of its walls) shifted by
     12 cells. The partition of the left part's transform holds every cell that agrees
     under it, among them the right part's walls along the shift (a third to a half of
@@ -151,11 +151,8 @@ def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
     would *take* (coherent, and their neighbourhood agreeing more under it than under
     their partition's) are the right part's, nearly all of them, and hardly any of the
     left part's; the left part's own transform takes nothing, and a wrong one little."""
-    from _breaking import building_31_corner
-
-    ref = building_31_corner(520)
-    index = ReferenceIndex.build(ref)
-    points = cell_points(ref.occupied)
+    index = corner_index
+    points = cell_points(corner.occupied)
     right = points[:, 0] >= 360
     moved = points.copy()
     moved[right] += shift
@@ -178,20 +175,17 @@ def test_a_part_shifted_along_its_walls_takes_its_own_region(shift):
     assert np.count_nonzero(taken(wrong)) < 0.1 * np.count_nonzero(by_truth)
 
 
-def test_only_a_true_part_taken_over_the_map_clears_the_free_space():
+def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corner_index):
     """The free-space check of a partition counted by the cells it takes: with the right
     part of building 31 shifted by 12 cells (walls and free space), the partition of its true
     transform, holding the cells it takes, makes the map's free space cross reference walls
     far less often than the left part's partition alone; a partition at a wrong place (turned
     by 90 degrees about the part) that holds the same cells does not."""
-    from _breaking import break_map, building_31_corner
-
-    ref = building_31_corner(520)
-    index = ReferenceIndex.build(ref)
-    right = np.zeros(ref.shape, bool)
+    index = corner_index
+    right = np.zeros(corner.shape, bool)
     right[:, 360:] = True
     broken, truths = break_map(
-        ref, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
+        corner, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
     )
     points = cell_points(broken.occupied)
     left_t, right_t = truths

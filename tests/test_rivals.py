@@ -20,10 +20,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from _breaking import SETTINGS, building_31_corner, move_about
+from _breaking import SETTINGS, median_error, move_about
 
 from brokenness import OccupancyMap, RigidTransform
-from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.masking import cell_points
 from brokenness.measure.partitions import Found, drop_redundant
 from brokenness.measure.settle import settle
 
@@ -31,20 +31,10 @@ CUT = 360
 
 
 @pytest.fixture(scope="module")
-def reference() -> OccupancyMap:
-    return building_31_corner(520)
-
-
-@pytest.fixture(scope="module")
-def index(reference: OccupancyMap) -> ReferenceIndex:
-    return ReferenceIndex.build(reference)
-
-
-@pytest.fixture(scope="module")
-def broken(reference: OccupancyMap):
+def broken(corner: OccupancyMap):
     """Map cells, the right part's mask, its true transform (map -> reference) and the
     wrong one its partition starts with."""
-    ref_points = cell_points(reference.occupied)
+    ref_points = cell_points(corner.occupied)
     right = ref_points[:, 0] >= CUT
     motion = move_about(tuple(ref_points[right].mean(axis=0)), 180.0, (-40.0, 20.0))
     points = ref_points.copy()
@@ -54,10 +44,6 @@ def broken(reference: OccupancyMap):
     return points, right, truth, wrong
 
 
-def _error(t: RigidTransform, truth: RigidTransform, pts: np.ndarray) -> float:
-    return float(np.median(t.displacement(truth, pts)))
-
-
 def _found(points, right, wrong) -> list[Found]:
     return [
         Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
@@ -65,53 +51,55 @@ def _found(points, right, wrong) -> list[Found]:
     ]
 
 
-def test_settle_takes_a_rival_that_explains_the_part(index, broken) -> None:
+def test_settle_takes_a_rival_that_explains_the_part(corner_index, broken) -> None:
     points, right, truth, wrong = broken
-    alone = settle(_found(points, right, wrong), points, index, SETTINGS)
+    alone = settle(_found(points, right, wrong), points, corner_index, SETTINGS)
     # without the rival, nothing local reaches the true place
-    assert min(_error(f.transform, truth, points[right]) for f in alone) > 10.0
-    settled = settle(_found(points, right, wrong), points, index, SETTINGS, [truth])
+    assert min(median_error(f.transform, truth, points[right]) for f in alone) > 10.0
+    settled = settle(_found(points, right, wrong), points, corner_index, SETTINGS, [truth])
     assert len(settled) == 2
-    assert _error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
-    assert _error(settled[1].transform, truth, points[right]) < 0.5
+    assert median_error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
+    assert median_error(settled[1].transform, truth, points[right]) < 0.5
     # every cell of the part goes to it again (reassign)
     assert np.isin(np.flatnonzero(right), settled[1].members).mean() > 0.9
 
 
-def test_settle_needs_more_than_chance_from_a_rival(index, broken) -> None:
+def test_settle_needs_more_than_chance_from_a_rival(corner_index, broken) -> None:
     # the same rival, with a margin no gain can pass: the partition keeps its transform
     points, right, truth, wrong = broken
     strict = replace(SETTINGS, significance=1e4)
-    settled = settle(_found(points, right, wrong), points, index, strict, [truth])
-    assert min(_error(f.transform, truth, points[right]) for f in settled) > 10.0
+    settled = settle(_found(points, right, wrong), points, corner_index, strict, [truth])
+    assert min(median_error(f.transform, truth, points[right]) for f in settled) > 10.0
 
 
-def test_a_rival_replaces_no_partition_it_explains_worse(index, broken) -> None:
+def test_a_rival_replaces_no_partition_it_explains_worse(corner_index, broken) -> None:
     # the left part's transform offered as a rival: no partition gains from taking it
     points, right, truth, _ = broken
     found = _found(points, right, truth)
-    settled = settle(found, points, index, SETTINGS, [RigidTransform(0.0, 0.0, 120.0)])
-    assert _error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
-    assert _error(settled[1].transform, truth, points[right]) < 0.5
+    settled = settle(found, points, corner_index, SETTINGS, [RigidTransform(0.0, 0.0, 120.0)])
+    assert median_error(settled[0].transform, RigidTransform(), points[~right]) < 0.5
+    assert median_error(settled[1].transform, truth, points[right]) < 0.5
 
 
-def test_a_turned_placement_that_explains_nothing_of_its_own_is_dropped(reference, index) -> None:
+def test_a_turned_placement_that_explains_nothing_of_its_own_is_dropped(
+    corner, corner_index
+) -> None:
     # the part found in its true place (the first partition explains every cell), and a
     # placement of its cells at a turned twin kept beside it: no cell is its own evidence
-    points = cell_points(reference.occupied)
+    points = cell_points(corner.occupied)
     right = points[:, 0] >= CUT
     twin = move_about(tuple(points[right].mean(axis=0)), 90.0, (0.0, 0.0))
     found = [
         Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
         Found(twin, np.flatnonzero(right), 1.0, 0.0),
     ]
-    kept = drop_redundant(found, points, index, SETTINGS)
+    kept = drop_redundant(found, points, corner_index, SETTINGS)
     assert len(kept) == 1
     assert kept[0].transform is found[0].transform
 
 
-def test_a_turned_partition_with_cells_of_its_own_is_kept(index, broken) -> None:
+def test_a_turned_partition_with_cells_of_its_own_is_kept(corner_index, broken) -> None:
     points, right, truth, _ = broken
     found = _found(points, right, truth)
-    kept = drop_redundant(found, points, index, SETTINGS)
+    kept = drop_redundant(found, points, corner_index, SETTINGS)
     assert [f.transform for f in kept] == [f.transform for f in found]

@@ -16,26 +16,15 @@ partitions all the same: the walls across the shift agree under one transform on
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from _breaking import SETTINGS, building_31_corner
+from _breaking import SETTINGS, median_error
 
 from brokenness import OccupancyMap, RigidTransform
-from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.masking import cell_points
 from brokenness.measure.partitions import Found, consolidate
 from brokenness.measure.settle import settle
 
 SHIFT = (0.0, 12.0)
 CUT = 360
-
-
-@pytest.fixture(scope="module")
-def reference() -> OccupancyMap:
-    return building_31_corner(520)
-
-
-@pytest.fixture(scope="module")
-def index(reference: OccupancyMap) -> ReferenceIndex:
-    return ReferenceIndex.build(reference)
 
 
 def _shifted(reference: OccupancyMap, shift: tuple[float, float]):
@@ -48,61 +37,57 @@ def _shifted(reference: OccupancyMap, shift: tuple[float, float]):
     return moved, right, truths
 
 
-def _error(t: RigidTransform, truth: RigidTransform, pts: np.ndarray) -> float:
-    return float(np.median(t.displacement(truth, pts)))
-
-
-def test_consolidate_keeps_shifted_parts_apart(reference, index) -> None:
-    points, right, truths = _shifted(reference, SHIFT)
+def test_consolidate_keeps_shifted_parts_apart(corner, corner_index) -> None:
+    points, right, truths = _shifted(corner, SHIFT)
     found = [
         Found(truths[0], np.flatnonzero(~right), 1.0, 0.0),
         Found(truths[1], np.flatnonzero(right), 1.0, 0.0),
     ]
     # one transform explains most cells of both, as the old join test asked
-    both = index.occupied_agreement(truths[0].apply(points), SETTINGS.threshold)
+    both = corner_index.occupied_agreement(truths[0].apply(points), SETTINGS.threshold)
     assert both.mean() > 0.85
-    kept = consolidate(found, points, index, SETTINGS)
+    kept = consolidate(found, points, corner_index, SETTINGS)
     assert len(kept) == 2
     for f, t, part in zip(kept, truths, (~right, right), strict=True):
-        assert _error(f.transform, t, points[part]) < 0.5
+        assert median_error(f.transform, t, points[part]) < 0.5
 
 
-def test_consolidate_joins_one_piece_found_twice(reference, index) -> None:
-    points = cell_points(reference.occupied)
+def test_consolidate_joins_one_piece_found_twice(corner, corner_index) -> None:
+    points = cell_points(corner.occupied)
     right = points[:, 0] >= CUT
     found = [
         Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
         Found(RigidTransform(0.0, 0.4, -0.3), np.flatnonzero(right), 1.0, 0.0),
     ]
-    assert len(consolidate(found, points, index, SETTINGS)) == 1
+    assert len(consolidate(found, points, corner_index, SETTINGS)) == 1
 
 
-def test_settle_splits_a_compromise_of_shifted_parts(reference, index) -> None:
-    points, right, truths = _shifted(reference, SHIFT)
+def test_settle_splits_a_compromise_of_shifted_parts(corner, corner_index) -> None:
+    points, right, truths = _shifted(corner, SHIFT)
     halfway = RigidTransform(0.0, -SHIFT[0] / 2, -SHIFT[1] / 2)
     found = [Found(halfway, np.arange(points.shape[0]), 1.0, 0.0)]
-    settled = settle(found, points, index, SETTINGS)
+    settled = settle(found, points, corner_index, SETTINGS)
     assert len(settled) == 2
     for t, part in zip(truths, (~right, right), strict=True):
-        errors = [_error(f.transform, t, points[part]) for f in settled]
+        errors = [median_error(f.transform, t, points[part]) for f in settled]
         assert min(errors) < 1.0, errors
 
 
-def test_settle_does_not_split_parts_within_the_loose_threshold(reference, index) -> None:
+def test_settle_does_not_split_parts_within_the_loose_threshold(corner, corner_index) -> None:
     # 3 cells: beyond the agreement threshold (2), within the merge test's (4): a residual
     # error of an unbroken map, not a bump
-    points, _, _ = _shifted(reference, (0.0, 3.0))
+    points, _, _ = _shifted(corner, (0.0, 3.0))
     found = [Found(RigidTransform(), np.arange(points.shape[0]), 1.0, 0.0)]
-    assert len(settle(found, points, index, SETTINGS)) == 1
+    assert len(settle(found, points, corner_index, SETTINGS)) == 1
 
 
-def test_settle_finds_a_part_shifted_beyond_the_refinement(reference, index) -> None:
+def test_settle_finds_a_part_shifted_beyond_the_refinement(corner, corner_index) -> None:
     # one partition with the other part's exact transform: the shifted part is 12 cells
     # off, beyond the trimmed ICP's reach (the loose threshold, 4), so only the shift
     # search of its unexplained cells can place it
-    points, right, truths = _shifted(reference, SHIFT)
+    points, right, truths = _shifted(corner, SHIFT)
     found = [Found(truths[0], np.arange(points.shape[0]), 1.0, 0.0)]
-    settled = settle(found, points, index, SETTINGS)
+    settled = settle(found, points, corner_index, SETTINGS)
     assert len(settled) == 2
-    errors = [_error(f.transform, truths[1], points[right]) for f in settled]
+    errors = [median_error(f.transform, truths[1], points[right]) for f in settled]
     assert min(errors) < 1.0, errors
