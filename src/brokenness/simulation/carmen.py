@@ -52,7 +52,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -60,11 +59,11 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
-from ..masking import ReferenceIndex
 from .bumps import Bump
 from .laser import Laser, LaserRun
 from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
-from .synthetic import _CANVAS_MARGIN, SimulatedMap, draw_broken_map
+from .options import BumpOptions, HonestRule
+from .synthetic import SimulatedMap, break_run
 
 __all__ = [
     "MAX_RANGE_MARGIN",
@@ -804,80 +803,35 @@ def broken_log_map(
     >>> sim.expected_degree, len(sim.partitions)  # doctest: +SKIP
     (1, 2)
     """
-    modes = sum(v is not None for v in (degree, bumps, bump_probability))
-    if modes > 1:
-        raise ParameterError("give at most one of degree, bumps and bump_probability")
-    if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    if degree is not None and not (isinstance(degree, int | np.integer) and degree >= 0):
-        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
-    if not (0.0 <= min_rotation <= max_rotation <= 180.0):
-        raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
+    options = BumpOptions(
+        seed,
+        degree,
+        bumps,
+        bump_probability,
+        bump_radius,
+        max_rotation,
+        min_rotation,
+        max_attempts,
+        HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
+    )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
-    if not (isinstance(max_attempts, int) and max_attempts >= 1):
-        raise ParameterError("max_attempts must be a positive integer")
-    seed = int(seed)
-    limit = _mapping_range(log, max_range)
     run, extent = log_run(log, max_range=max_range, clear_no_returns=clear_no_returns)
-    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(
-        _counts(log, log.poses, resolution, shape, origin, limit, clear_no_returns)
-    )
-    reference = OccupancyMap(reference.states, reference.resolution, reference.origin, log.source)
-    index = ReferenceIndex.build(reference)
-    outcome, attempts = draw_broken_map(
-        run,
-        reference,
-        index,
-        extent,
-        seed=seed,
-        degree=degree,
-        bumps=bumps,
-        bump_probability=bump_probability,
-        bump_radius=bump_radius,
-        max_rotation=max_rotation,
-        min_rotation=min_rotation,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction,
-        min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts,
-        hint=f"{log.source or 'the log'}: try a lower degree",
-    )
-    broken, expected, parts, labels, judged, bumped = outcome
-    parameters: dict[str, Any] = {
-        "seed": seed,
-        "degree": degree,
-        "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability,
-        "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation,
-        "min_rotation_deg": min_rotation,
+    setting = {
         "resolution": resolution,
         "log": log.source,
         "message": log.message,
         "scans": log.n_scans,
         "beams": log.n_beams,
-        "max_range": limit,
+        "max_range": run.laser.max_range,
         "clear_no_returns": clear_no_returns,
-        "threshold": threshold,
-        "merge_threshold": merge_threshold,
-        "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells,
-        "attempts": attempts,
     }
-    broken = OccupancyMap(broken.states, broken.resolution, broken.origin, log.source)
-    return SimulatedMap(
-        map=broken,
-        reference=reference,
-        expected_degree=expected,
-        partitions=parts,
-        labels=labels,
-        bumps=judged,
-        seed=seed,
-        parameters=parameters,
-        building=None,
-        run=run,
-        estimated_poses=bumped.poses,
+    return break_run(
+        run,
+        extent,
+        options,
+        resolution=resolution,
+        hint=f"{log.source or 'the log'}: try a lower degree",
+        setting=setting,
+        source=log.source,
     )

@@ -44,6 +44,7 @@ __all__ = [
     "map_prefixes",
     "map_scans",
     "scan_counts",
+    "segment_labels",
 ]
 
 #: Log-odds added to a cell by each beam ending in it (p = 0.7).
@@ -304,6 +305,59 @@ def scan_counts(
         origin=origin,
         dropped_hits=dropped,
     )
+
+
+def segment_labels(
+    poses: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    segment: NDArray[np.int64],
+    occupied: NDArray[np.bool_],
+    *,
+    max_range: float,
+    resolution: float,
+    shape: tuple[int, int],
+    origin: tuple[float, float, float],
+) -> NDArray[np.int16]:
+    """Per cell, the segment of a run whose scans hit it most often; -1 where not occupied.
+
+    Ties go to the first segment. The hits are counted one segment at a time (only hits, as
+    :func:`scan_counts` with ``free_space=False``).
+
+    Parameters
+    ----------
+    poses, ranges, angles
+        The scans, as for :func:`scan_counts`.
+    segment : ndarray of int, shape (N,)
+        Segment (partition) of each scan.
+    occupied : ndarray of bool, shape ``shape``
+        The cells to label (the occupied cells of the map the scans drew).
+    max_range, resolution, shape, origin
+        The grid, as for :func:`scan_counts`.
+
+    Returns
+    -------
+    ndarray of int16
+        Of shape ``shape``.
+    """
+    best = np.zeros(shape, dtype=np.int32)
+    owner = np.zeros(shape, dtype=np.int16)
+    for j in np.unique(segment):
+        sel = segment == j
+        hits = scan_counts(
+            poses[sel],
+            ranges[sel],
+            angles,
+            max_range=max_range,
+            resolution=resolution,
+            shape=shape,
+            origin=origin,
+            free_space=False,
+        ).hits
+        more = hits > best
+        owner[more] = j
+        best[more] = hits[more]
+    return np.where(occupied, owner, -1).astype(np.int16)
 
 
 def counts_to_map(

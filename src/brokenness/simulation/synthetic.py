@@ -47,8 +47,8 @@ number of counted bumps minus one.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -59,9 +59,10 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
 from ..transform import RigidTransform
 from .building import Building, generate_building
-from .bumps import Bump, BumpedPoses, apply_bumps, draw_bumps, draw_k_bumps
+from .bumps import Bump, BumpedPoses, apply_bumps
 from .laser import Laser, LaserRun, simulate_run
-from .mapper import counts_to_map, grid_geometry, scan_counts
+from .mapper import counts_to_map, grid_geometry, scan_counts, segment_labels
+from .options import BumpOptions, HonestRule
 
 __all__ = ["SimulatedMap", "SimulatedPartition", "broken_map_from_run", "simulate_broken_map"]
 
@@ -194,15 +195,12 @@ def _judge(
     points: list[NDArray[np.float64]],
     n_occupied: int,
     index: ReferenceIndex,
-    *,
-    threshold: float,
-    merge_threshold: float,
-    min_fraction: float,
-    min_cells: int,
+    rule: HonestRule,
 ) -> tuple[list[float], list[bool], list[str]]:
     """The honest rule of the module docstring: agreement, counted, reason per partition."""
+    threshold, merge_threshold = rule.threshold, rule.merge_threshold
     n = len(points)
-    need = max(min_fraction * n_occupied, float(min_cells))
+    need = max(rule.min_partition_fraction * n_occupied, float(rule.min_partition_cells))
     q = index.chance_agreement(merge_threshold)
     agreement = [
         float(index.occupied_agreement(transforms[j].apply(points[j]), threshold).mean())
@@ -252,6 +250,16 @@ def _judge(
     return agreement, counted, reason
 
 
+_Outcome = tuple[
+    OccupancyMap,
+    int,
+    tuple[SimulatedPartition, ...],
+    NDArray[np.int16],
+    tuple[Bump, ...],
+    BumpedPoses,
+]
+
+
 def broken_map_from_run(
     run: LaserRun,
     reference: OccupancyMap,
@@ -263,14 +271,7 @@ def broken_map_from_run(
     merge_threshold: float = 4.0,
     min_partition_fraction: float = 0.02,
     min_partition_cells: int = 30,
-) -> tuple[
-    OccupancyMap,
-    int,
-    tuple[SimulatedPartition, ...],
-    NDArray[np.int16],
-    tuple[Bump, ...],
-    BumpedPoses,
-]:
+) -> _Outcome:
     """Map a run with bumps composed onto its pose estimate; judge the partitions.
 
     Parameters
@@ -284,51 +285,42 @@ def broken_map_from_run(
     index : ReferenceIndex, optional
         Of ``reference`` (built if not given).
     threshold, merge_threshold, min_partition_fraction, min_partition_cells
-        The honest rule (module docstring).
+        The honest rule (module docstring; :class:`~brokenness.simulation.options.HonestRule`).
 
     Returns
     -------
     tuple
         ``(map, expected_degree, partitions, labels, bumps with verdicts, bumped poses)``.
     """
+    rule = HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells)
+    return _map_with_bumps(run, reference, bumps, extent, index, rule)
+
+
+def _map_with_bumps(
+    run: LaserRun,
+    reference: OccupancyMap,
+    bumps: Sequence[Bump],
+    extent: tuple[float, float, float, float],
+    index: ReferenceIndex | None,
+    rule: HonestRule,
+) -> _Outcome:
+    """:func:`broken_map_from_run` with the honest rule as one object."""
     res = reference.resolution
     if res is None:
         raise ParameterError("the reference needs a resolution")
     index = ReferenceIndex.build(reference) if index is None else index
     bp = apply_bumps(run.noisy_poses, bumps)
     shape, origin = _broken_canvas(bp.errors, extent, bp.poses, res)
-    max_range = run.laser.max_range
-    counts = scan_counts(
-        bp.poses,
-        run.ranges,
-        run.angles,
-        max_range=max_range,
-        resolution=res,
-        shape=shape,
-        origin=origin,
-    )
-    broken = counts_to_map(counts)
+    grid: dict[str, Any] = {
+        "max_range": run.laser.max_range,
+        "resolution": res,
+        "shape": shape,
+        "origin": origin,
+    }
+    broken = counts_to_map(scan_counts(bp.poses, run.ranges, run.angles, **grid))
+    # label = the segment with the most hits in the cell (first one on ties)
+    labels = segment_labels(bp.poses, run.ranges, run.angles, bp.segment, broken.occupied, **grid)
     n_seg = len(bp.errors)
-    # label = the segment with the most hits in the cell (first one on ties); one grid at a time
-    best = np.zeros(shape, dtype=np.int32)
-    owner = np.zeros(shape, dtype=np.int16)
-    for j in range(n_seg):
-        sel = bp.segment == j
-        hits = scan_counts(
-            bp.poses[sel],
-            run.ranges[sel],
-            run.angles,
-            max_range=max_range,
-            resolution=res,
-            shape=shape,
-            origin=origin,
-            free_space=False,
-        ).hits
-        more = hits > best
-        owner[more] = j
-        best[more] = hits[more]
-    occupied = broken.occupied
-    labels = np.where(occupied, owner, NOT_OCCUPIED).astype(np.int16)
     w_map = broken.cell_to_world_matrix()
     w_ref_inv = np.linalg.inv(reference.cell_to_world_matrix())
     transforms = [
@@ -339,16 +331,7 @@ def broken_map_from_run(
     ]
     points = [cell_points(labels == j) for j in range(n_seg)]
     n_occ = broken.n_occupied
-    agreement, counted, reason = _judge(
-        transforms,
-        points,
-        n_occ,
-        index,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_fraction=min_partition_fraction,
-        min_cells=min_partition_cells,
-    )
+    agreement, counted, reason = _judge(transforms, points, n_occ, index, rule)
     firsts = [0] + [b.scan for b in bp.bumps]
     ends = firsts[1:] + [len(bp.poses)]
     parts = tuple(
@@ -377,28 +360,17 @@ def draw_broken_map(
     reference: OccupancyMap,
     index: ReferenceIndex,
     extent: tuple[float, float, float, float],
+    options: BumpOptions,
     *,
-    seed: int,
-    degree: int | None,
-    bumps: int | Sequence[Bump] | None,
-    bump_probability: float | None,
-    bump_radius: float,
-    max_rotation: float,
-    min_rotation: float,
-    threshold: float,
-    merge_threshold: float,
-    min_partition_fraction: float,
-    min_partition_cells: int,
-    max_attempts: int,
     hint: str,
-) -> tuple[Any, int]:
-    """Draw bumps for a run and map it with them; with ``degree``, redraw until it counts.
+) -> tuple[_Outcome, int]:
+    """Draw bumps for a run and map it with them; with a ``degree``, redraw until it counts.
 
-    Shared by synthetic runs and real logs. Bumps come from ``degree`` (exactly that many,
-    redrawn up to ``max_attempts`` times until the honest expected degree equals it),
-    ``bump_probability`` (the paper's model), ``bumps`` (a count drawn once, or explicit
-    bumps). Angles are in degrees. Returns the outcome of :func:`broken_map_from_run` and
-    the number of draws.
+    Shared by synthetic runs and real logs. Draw ``k`` is :meth:`BumpOptions.draw
+    <brokenness.simulation.options.BumpOptions.draw>` ``(n_scans, k)``, mapped and judged by
+    :func:`broken_map_from_run` with ``options.rule``; in ``degree`` mode up to
+    ``options.max_attempts`` draws are made until the honest expected degree equals it.
+    Returns the outcome of :func:`broken_map_from_run` and the number of draws.
 
     Raises
     ------
@@ -406,59 +378,105 @@ def draw_broken_map(
         If no draw gives the requested degree (``hint`` says what to try).
     """
     n_scans = len(run.true_poses)
-    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
-
-    def attempt(k: int) -> list[Bump]:
-        rng = np.random.default_rng([seed, 2, k])
-        if degree is not None:
-            return draw_k_bumps(
-                n_scans,
-                int(degree),
-                radius=bump_radius,
-                max_rotation=max_rot,
-                min_rotation=min_rot,
-                rng=rng,
-            )
-        if bump_probability is not None:
-            return draw_bumps(
-                n_scans, float(bump_probability), radius=bump_radius, max_rotation=max_rot, rng=rng
-            )
-        if isinstance(bumps, int | np.integer):
-            return draw_k_bumps(
-                n_scans,
-                int(bumps),
-                radius=bump_radius,
-                max_rotation=max_rot,
-                min_rotation=min_rot,
-                rng=rng,
-                spread=False,
-            )
-        return list(bumps or [])
-
-    tries = max_attempts if degree is not None else 1
+    degree = options.degree
     seen: list[int] = []
     outcome = None
-    for k in range(tries):
-        outcome = broken_map_from_run(
-            run,
-            reference,
-            attempt(k),
-            extent=extent,
-            index=index,
-            threshold=threshold,
-            merge_threshold=merge_threshold,
-            min_partition_fraction=min_partition_fraction,
-            min_partition_cells=min_partition_cells,
+    for k in range(options.attempts):
+        outcome = _map_with_bumps(
+            run, reference, options.draw(n_scans, k), extent, index, options.rule
         )
         seen.append(outcome[1])
         if degree is None or outcome[1] == degree:
             break
     if outcome is None or (degree is not None and outcome[1] != degree):
         raise ParameterError(
-            f"could not make a map of degree {degree} in {max_attempts} draws (got degrees "
-            f"{sorted(set(seen))}); {hint}"
+            f"could not make a map of degree {degree} in {options.max_attempts} draws (got "
+            f"degrees {sorted(set(seen))}); {hint}"
         )
     return outcome, len(seen)
+
+
+def reference_map(
+    run: LaserRun, extent: tuple[float, float, float, float], resolution: float
+) -> OccupancyMap:
+    """A run mapped with its true poses on the box ``extent`` plus 0.5 m (the reference)."""
+    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
+    counts = scan_counts(
+        run.true_poses,
+        run.ranges,
+        run.angles,
+        max_range=run.laser.max_range,
+        resolution=resolution,
+        shape=shape,
+        origin=origin,
+    )
+    return counts_to_map(counts)
+
+
+def break_run(
+    run: LaserRun,
+    extent: tuple[float, float, float, float],
+    options: BumpOptions,
+    *,
+    resolution: float,
+    hint: str,
+    setting: Mapping[str, Any],
+    extra: Mapping[str, Any] | None = None,
+    building: Building | None = None,
+    source: str | None = None,
+) -> SimulatedMap:
+    """The reference of a run, a broken map of it drawn with bumps, and the ground truth.
+
+    The common part of :func:`simulate_broken_map` and
+    :func:`~brokenness.simulation.carmen.broken_log_map`.
+
+    Parameters
+    ----------
+    run : LaserRun
+    extent : (x0, y0, x1, y1)
+        World box (metres) that holds everything the laser can see.
+    options : BumpOptions
+    resolution : float
+        Metres per cell of both maps.
+    hint : str
+        What to try when the degree is not reached.
+    setting : mapping
+        The ``parameters`` entries that describe the run (building and laser, or log), put
+        between the bump model's and the honest rule's.
+    extra : mapping, optional
+        Entries put last, after ``attempts``.
+    building : Building, optional
+    source : str, optional
+        The ``source`` of both maps.
+
+    Returns
+    -------
+    SimulatedMap
+    """
+    reference = replace(reference_map(run, extent, resolution), source=source)
+    index = ReferenceIndex.build(reference)
+    outcome, attempts = draw_broken_map(run, reference, index, extent, options, hint=hint)
+    broken, expected, parts, labels, judged, bumped = outcome
+    parameters: dict[str, Any] = {
+        **options.parameters(),
+        **setting,
+        **options.rule.parameters(),
+        "attempts": attempts,
+        **(extra or {}),
+    }
+    return SimulatedMap(
+        map=replace(broken, source=source),
+        reference=reference,
+        expected_degree=expected,
+        partitions=parts,
+        labels=labels,
+        bumps=judged,
+        seed=options.seed,
+        parameters=parameters,
+        building=building,
+        run=run,
+        estimated_poses=bumped.poses,
+    )
 
 
 def simulate_broken_map(
@@ -537,75 +555,32 @@ def simulate_broken_map(
     >>> sim.expected_degree, sim.map.resolution == sim.reference.resolution
     (2, True)
     """
-    modes = sum(v is not None for v in (degree, bumps, bump_probability))
-    if modes > 1:
-        raise ParameterError("give at most one of degree, bumps and bump_probability")
-    if not isinstance(seed, int | np.integer) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    if degree is not None and not (isinstance(degree, int | np.integer) and degree >= 0):
-        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
-    if not (0.0 <= min_rotation <= max_rotation <= 180.0):
-        raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
+    options = BumpOptions(
+        seed,
+        degree,
+        bumps,
+        bump_probability,
+        bump_radius,
+        max_rotation,
+        min_rotation,
+        max_attempts,
+        HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
+    )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
-    if not (isinstance(max_attempts, int) and max_attempts >= 1):
-        raise ParameterError("max_attempts must be a positive integer")
     width, height = (size, size) if isinstance(size, int | float) else size
     laser = Laser() if laser is None else laser
-    seed = int(seed)
     building = generate_building(
-        seed, width=float(width), height=float(height), truth_resolution=resolution / 2
+        options.seed, width=float(width), height=float(height), truth_resolution=resolution / 2
     )
     run = simulate_run(
         building,
         laser=laser,
         spacing=spacing,
         pose_sigma=pose_sigma,
-        rng=np.random.default_rng([seed, 1]),
+        rng=np.random.default_rng([options.seed, 1]),
     )
-    extent = (0.0, 0.0, building.width, building.height)
-    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(
-        scan_counts(
-            run.true_poses,
-            run.ranges,
-            run.angles,
-            max_range=laser.max_range,
-            resolution=resolution,
-            shape=shape,
-            origin=origin,
-        )
-    )
-    index = ReferenceIndex.build(reference)
-    n_scans = len(run.true_poses)
-    outcome, attempts = draw_broken_map(
-        run,
-        reference,
-        index,
-        extent,
-        seed=seed,
-        degree=degree,
-        bumps=bumps,
-        bump_probability=bump_probability,
-        bump_radius=bump_radius,
-        max_rotation=max_rotation,
-        min_rotation=min_rotation,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction,
-        min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts,
-        hint="use a larger building or a lower degree",
-    )
-    broken, expected, parts, labels, judged, bp = outcome
-    parameters: dict[str, Any] = {
-        "seed": seed,
-        "degree": degree,
-        "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability,
-        "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation,
-        "min_rotation_deg": min_rotation,
+    setting = {
         "size_m": [float(width), float(height)],
         "resolution": resolution,
         "laser": {
@@ -616,23 +591,14 @@ def simulate_broken_map(
         },
         "spacing": spacing,
         "pose_sigma": [pose_sigma[0], math.degrees(pose_sigma[1])],
-        "threshold": threshold,
-        "merge_threshold": merge_threshold,
-        "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells,
-        "attempts": attempts,
-        "scans": n_scans,
     }
-    return SimulatedMap(
-        map=broken,
-        reference=reference,
-        expected_degree=expected,
-        partitions=parts,
-        labels=labels,
-        bumps=judged,
-        seed=seed,
-        parameters=parameters,
+    return break_run(
+        run,
+        (0.0, 0.0, building.width, building.height),
+        options,
+        resolution=resolution,
+        hint="use a larger building or a lower degree",
+        setting=setting,
+        extra={"scans": len(run.true_poses)},
         building=building,
-        run=run,
-        estimated_poses=bp.poses,
     )

@@ -19,6 +19,7 @@ cell_to_world_matrix`); :func:`frame_truth` computes it.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,7 +28,7 @@ from ..errors import ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
 from .building import Building
-from .mapper import counts_to_map, grid_geometry, scan_counts
+from .mapper import counts_to_map, grid_geometry, scan_counts, segment_labels
 
 __all__ = ["frame_truth", "map_in_frame", "plan_map"]
 
@@ -92,18 +93,14 @@ def map_in_frame(
         [moved[:, 0:1] + r * np.cos(heading), moved[:, 1:2] + r * np.sin(heading)], axis=-1
     )[hit]
     shape, origin = grid_geometry(np.concatenate([ends, moved[:, :2]]), resolution, margin)
-    kw = {"max_range": max_range, "resolution": resolution, "shape": shape, "origin": origin}
-    m = counts_to_map(scan_counts(moved, r, a, **kw))  # type: ignore[arg-type]
-    best = np.zeros(shape, dtype=np.int32)
-    owner = np.zeros(shape, dtype=np.int16)
-    for j in np.unique(seg):
-        sel = seg == j
-        hits = scan_counts(moved[sel], r[sel], a, free_space=False, **kw).hits  # type: ignore[arg-type]
-        more = hits > best
-        owner[more] = j
-        best[more] = hits[more]
-    labels = np.where(m.occupied, owner, -1).astype(np.int16)
-    return m, labels
+    grid: dict[str, Any] = {
+        "max_range": max_range,
+        "resolution": resolution,
+        "shape": shape,
+        "origin": origin,
+    }
+    m = counts_to_map(scan_counts(moved, r, a, **grid))
+    return m, segment_labels(moved, r, a, seg, m.occupied, **grid)
 
 
 def frame_truth(
