@@ -104,7 +104,7 @@ from brokenness.simulation import (  # noqa: E402
     simulate_run,
 )
 from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
-from brokenness.simulation.synthetic import broken_map_from_run, reference_map  # noqa: E402
+from brokenness.simulation.ground_truth import broken_map_from_run, reference_map  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 #: Where cases are written (``--cache`` or ``BROKENNESS_BENCH_CACHE`` to share one between

@@ -6,6 +6,8 @@
 - :mod:`.bumps`: the paper's bump noise on the pose estimate (and an exact "k bumps" mode);
 - :mod:`.options`: :class:`BumpOptions`, the bump model of a broken map and the honest rule
   (:class:`HonestRule`) that judges its partitions;
+- :mod:`.ground_truth`: a run's reference, its broken map, the partitions' true transforms and
+  the honest expected degree;
 - :mod:`.synthetic`: :func:`simulate_broken_map`, a broken map + reference + ground truth;
 - :mod:`.views`: a run mapped in its own frame, cropped; a building's plan as a reference;
 - :mod:`.output`: :func:`save_simulation`, maps (ROS YAML + PGM), ground-truth JSON, labels.

@@ -39,7 +39,7 @@ Rules (documented, tested):
 Mapping (:func:`map_log`) uses :mod:`brokenness.simulation.mapper`; :func:`wall_check` measures
 whether a log maps to single walls; :func:`broken_log_map` makes broken maps of the real
 building with the bump noise of :mod:`brokenness.simulation.bumps` and the ground truth of
-:mod:`brokenness.simulation.synthetic`.
+:mod:`brokenness.simulation.ground_truth`.
 """
 
 from __future__ import annotations
@@ -60,10 +60,10 @@ from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
 from .bumps import Bump
+from .ground_truth import SimulatedMap, break_run
 from .laser import Laser, LaserRun
 from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
 from .options import BumpOptions, HonestRule
-from .synthetic import SimulatedMap, break_run
 
 __all__ = [
     "MAX_RANGE_MARGIN",
@@ -701,7 +701,7 @@ def log_run(
     laser has the log's beams and the mapping range (``max_range`` as in :func:`map_log`).
     The box ``(x0, y0, x1, y1)`` (metres) holds the poses and the hits within the mapping
     range. :func:`broken_log_map` breaks this run; give it to
-    :func:`~brokenness.simulation.synthetic.broken_map_from_run` to draw other bumps
+    :func:`~brokenness.simulation.ground_truth.broken_map_from_run` to draw other bumps
     without re-reading the log.
     """
     limit = _mapping_range(log, max_range)
@@ -747,8 +747,8 @@ def broken_log_map(
     scans mapped with bumps composed onto the pose chain
     (:func:`~brokenness.simulation.bumps.apply_bumps`: after bump ``j`` every pose carries the
     world error ``E_j``). The ground truth and the honest expected degree are those of
-    :func:`~brokenness.simulation.synthetic.broken_map_from_run` (see
-    :mod:`brokenness.simulation.synthetic`): each partition's transform maps a broken-map cell
+    :func:`~brokenness.simulation.ground_truth.broken_map_from_run` (see
+    :mod:`brokenness.simulation.ground_truth`): each partition's transform maps a broken-map cell
     onto the reference grid in the convention of :func:`brokenness.compute_brokenness`
     (``W_ref^-1 o E_j^-1 o W_map``), its ``world`` part is ``E_j^-1``.
 
@@ -779,7 +779,7 @@ def broken_log_map(
     max_range, clear_no_returns
         As in :func:`map_log`.
     threshold, merge_threshold, min_partition_fraction, min_partition_cells
-        The honest rule of :mod:`brokenness.simulation.synthetic`.
+        The honest rule of :mod:`brokenness.simulation.ground_truth`.
     max_attempts : int
         Bound on redraws in ``degree`` mode.
 

@@ -2,7 +2,7 @@
 
 :class:`BumpOptions` says how the bumps of a run are drawn (:mod:`.bumps`) and, through its
 :class:`HonestRule`, when the partition a bump starts counts towards the expected degree (the
-rule of :mod:`brokenness.simulation.synthetic`). One object, checked once, is what
+rule of :mod:`brokenness.simulation.ground_truth`). One object, checked once, is what
 :func:`~brokenness.simulation.synthetic.simulate_broken_map` and
 :func:`~brokenness.simulation.carmen.broken_log_map` build from their keywords and hand on.
 """
@@ -27,7 +27,7 @@ class HonestRule:
     """When a partition counts towards the expected degree (the honest rule).
 
     Defaults are those of :func:`brokenness.compute_brokenness`; see
-    :mod:`brokenness.simulation.synthetic` for the rule itself.
+    :mod:`brokenness.simulation.ground_truth` for the rule itself.
 
     Attributes
     ----------

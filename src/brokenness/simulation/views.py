@@ -4,7 +4,7 @@
 world frame -- the SLAM run "started anywhere": the whole map turned and shifted by a rigid
 ``frame`` -- on a grid cropped to what the scans saw, three-state (free by ray casting,
 unknown elsewhere), and labels each occupied cell with the segment of the run whose scans hit
-it most often (the partitions of :mod:`brokenness.simulation.synthetic`).
+it most often (the partitions of :mod:`brokenness.simulation.ground_truth`).
 
 :func:`plan_map` rasterises a synthetic building's plan (:attr:`Building.grid`) as a
 reference: every wall and clutter object occupied, including walls the robot never saw, the
