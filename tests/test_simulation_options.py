@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 
+from brokenness import OCCUPIED, OccupancyMap
 from brokenness.errors import ParameterError
 from brokenness.masking import ReferenceIndex
 from brokenness.simulation import (
@@ -19,7 +20,7 @@ from brokenness.simulation import (
     simulate_broken_map,
 )
 from brokenness.simulation.ground_truth import broken_map_from_run, draw_broken_map
-from brokenness.simulation.mapper import segment_labels
+from brokenness.simulation.mapper import map_scans, segment_labels
 
 
 def test_defaults_are_those_of_the_public_functions() -> None:
@@ -167,12 +168,16 @@ def test_segment_labels_most_hits_first_on_ties() -> None:
     poses = np.array([[0.5, 0.5, 0.0]] * 3)
     ranges = np.full((3, 1), 0.3)
     angles = np.zeros(1)
-    grid = {"max_range": 4.0, "resolution": 0.1, "shape": (10, 10), "origin": (0.0, 0.0, 0.0)}
-    everywhere = np.ones((10, 10), bool)
-    labels = segment_labels(poses, ranges, angles, np.array([0, 1, 1]), everywhere, **grid)
+    drawn = map_scans(poses, ranges, angles, max_range=4.0, resolution=0.1, shape=(10, 10))
+    assert int(drawn.states[4, 8]) == OCCUPIED
+    labels = segment_labels(poses, ranges, angles, np.array([0, 1, 1]), drawn, max_range=4.0)
     assert labels.dtype == np.int16 and int(labels[4, 8]) == 1  # two hits of segment 1
-    labels = segment_labels(poses[:2], ranges[:2], angles, np.array([0, 1]), everywhere, **grid)
+    assert (labels[drawn.states != OCCUPIED] == -1).all()
+    labels = segment_labels(poses, ranges, angles, np.array([0, 1, 0]), drawn, max_range=4.0)
+    assert int(labels[4, 8]) == 0
+    labels = segment_labels(poses[:2], ranges[:2], angles, np.array([0, 1]), drawn, max_range=4.0)
     assert int(labels[4, 8]) == 0  # a tie: the first segment
-    nowhere = np.zeros((10, 10), bool)
-    labels = segment_labels(poses, ranges, angles, np.array([0, 1, 1]), nowhere, **grid)
-    assert (labels == -1).all()
+    with pytest.raises(ParameterError, match="need a map with a resolution and an origin"):
+        segment_labels(
+            poses, ranges, angles, np.zeros(3, np.int64), OccupancyMap(drawn.states), max_range=4.0
+        )

@@ -199,6 +199,26 @@ def _broken_canvas(
     return grid_geometry(np.concatenate(pts), resolution, margin=_CANVAS_MARGIN)
 
 
+def _mapped(
+    run: LaserRun,
+    poses: NDArray[np.float64],
+    resolution: float,
+    shape: tuple[int, int],
+    origin: tuple[float, float, float],
+) -> OccupancyMap:
+    """The run's scans drawn from ``poses`` on a grid (the mapper's default log-odds)."""
+    counts = scan_counts(
+        poses,
+        run.ranges,
+        run.angles,
+        max_range=run.laser.max_range,
+        resolution=resolution,
+        shape=shape,
+        origin=origin,
+    )
+    return counts_to_map(counts)
+
+
 def _judge(
     transforms: list[RigidTransform],
     points: list[NDArray[np.float64]],
@@ -320,15 +340,11 @@ def _map_with_bumps(
     index = ReferenceIndex.build(reference) if index is None else index
     bp = apply_bumps(run.noisy_poses, bumps)
     shape, origin = _broken_canvas(bp.errors, extent, bp.poses, res)
-    grid: dict[str, Any] = {
-        "max_range": run.laser.max_range,
-        "resolution": res,
-        "shape": shape,
-        "origin": origin,
-    }
-    broken = counts_to_map(scan_counts(bp.poses, run.ranges, run.angles, **grid))
+    broken = _mapped(run, bp.poses, res, shape, origin)
     # label = the segment with the most hits in the cell (first one on ties)
-    labels = segment_labels(bp.poses, run.ranges, run.angles, bp.segment, broken.occupied, **grid)
+    labels = segment_labels(
+        bp.poses, run.ranges, run.angles, bp.segment, broken, max_range=run.laser.max_range
+    )
     n_seg = len(bp.errors)
     w_map = broken.cell_to_world_matrix()
     w_ref_inv = np.linalg.inv(reference.cell_to_world_matrix())
@@ -410,16 +426,7 @@ def reference_map(
 ) -> OccupancyMap:
     """A run mapped with its true poses on the box ``extent`` plus 0.5 m (the reference)."""
     shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    counts = scan_counts(
-        run.true_poses,
-        run.ranges,
-        run.angles,
-        max_range=run.laser.max_range,
-        resolution=resolution,
-        shape=shape,
-        origin=origin,
-    )
-    return counts_to_map(counts)
+    return _mapped(run, run.true_poses, resolution, shape, origin)
 
 
 def break_run(

@@ -312,17 +312,15 @@ def segment_labels(
     ranges: NDArray[np.float64],
     angles: NDArray[np.float64],
     segment: NDArray[np.int64],
-    occupied: NDArray[np.bool_],
+    drawn: OccupancyMap,
     *,
     max_range: float,
-    resolution: float,
-    shape: tuple[int, int],
-    origin: tuple[float, float, float],
 ) -> NDArray[np.int16]:
-    """Per cell, the segment of a run whose scans hit it most often; -1 where not occupied.
+    """Per occupied cell of a map, the segment of the run whose scans hit it most often.
 
-    Ties go to the first segment. The hits are counted one segment at a time (only hits, as
-    :func:`scan_counts` with ``free_space=False``).
+    Ties go to the first segment; cells that are not occupied get -1. The hits are counted
+    one segment at a time on the map's grid (only hits, as :func:`scan_counts` with
+    ``free_space=False``).
 
     Parameters
     ----------
@@ -330,18 +328,20 @@ def segment_labels(
         The scans, as for :func:`scan_counts`.
     segment : ndarray of int, shape (N,)
         Segment (partition) of each scan.
-    occupied : ndarray of bool, shape ``shape``
-        The cells to label (the occupied cells of the map the scans drew).
-    max_range, resolution, shape, origin
-        The grid, as for :func:`scan_counts`.
+    drawn : OccupancyMap
+        The map the scans drew (with its resolution and origin).
+    max_range : float
+        As for :func:`scan_counts`.
 
     Returns
     -------
     ndarray of int16
-        Of shape ``shape``.
+        Of the map's shape.
     """
-    best = np.zeros(shape, dtype=np.int32)
-    owner = np.zeros(shape, dtype=np.int16)
+    if drawn.resolution is None or drawn.origin is None:
+        raise ParameterError("segment labels need a map with a resolution and an origin")
+    best = np.zeros(drawn.shape, dtype=np.int32)
+    owner = np.zeros(drawn.shape, dtype=np.int16)
     for j in np.unique(segment):
         sel = segment == j
         hits = scan_counts(
@@ -349,15 +349,15 @@ def segment_labels(
             ranges[sel],
             angles,
             max_range=max_range,
-            resolution=resolution,
-            shape=shape,
-            origin=origin,
+            resolution=drawn.resolution,
+            shape=drawn.shape,
+            origin=drawn.origin,
             free_space=False,
         ).hits
         more = hits > best
         owner[more] = j
         best[more] = hits[more]
-    return np.where(occupied, owner, -1).astype(np.int16)
+    return np.where(drawn.occupied, owner, -1).astype(np.int16)
 
 
 def counts_to_map(

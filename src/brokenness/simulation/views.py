@@ -19,7 +19,6 @@ cell_to_world_matrix`); :func:`frame_truth` computes it.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -93,14 +92,11 @@ def map_in_frame(
         [moved[:, 0:1] + r * np.cos(heading), moved[:, 1:2] + r * np.sin(heading)], axis=-1
     )[hit]
     shape, origin = grid_geometry(np.concatenate([ends, moved[:, :2]]), resolution, margin)
-    grid: dict[str, Any] = {
-        "max_range": max_range,
-        "resolution": resolution,
-        "shape": shape,
-        "origin": origin,
-    }
-    m = counts_to_map(scan_counts(moved, r, a, **grid))
-    return m, segment_labels(moved, r, a, seg, m.occupied, **grid)
+    counts = scan_counts(
+        moved, r, a, max_range=max_range, resolution=resolution, shape=shape, origin=origin
+    )
+    m = counts_to_map(counts)
+    return m, segment_labels(moved, r, a, seg, m, max_range=max_range)
 
 
 def frame_truth(
