@@ -757,7 +757,9 @@ def broken_log_map(
     two grids are identical (same shape and origin); with bumps the broken map's grid is the
     larger box (same resolution, origin on the same lattice of cells).
 
-    Give at most one of ``degree``, ``bumps`` and ``bump_probability``.
+    Give at most one of ``degree``, ``bumps`` and ``bump_probability``. The bump keywords and
+    those of the honest rule are checked once, as a
+    :class:`~brokenness.simulation.options.BumpOptions`.
 
     Parameters
     ----------

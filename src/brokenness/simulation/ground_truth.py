@@ -395,7 +395,24 @@ def draw_broken_map(
     <brokenness.simulation.options.BumpOptions.draw>` ``(n_scans, k)``, mapped and judged by
     :func:`broken_map_from_run` with ``options.rule``; in ``degree`` mode up to
     ``options.max_attempts`` draws are made until the honest expected degree equals it.
-    Returns the outcome of :func:`broken_map_from_run` and the number of draws.
+
+    Parameters
+    ----------
+    run : LaserRun
+    reference : OccupancyMap
+        The run mapped with the true poses (:func:`reference_map`).
+    index : ReferenceIndex
+        Of ``reference``.
+    extent : (x0, y0, x1, y1)
+        World box (metres) that holds everything the laser can see.
+    options : BumpOptions
+    hint : str
+        What to try when the degree is not reached (the end of the error message).
+
+    Returns
+    -------
+    (tuple, int)
+        The outcome of :func:`broken_map_from_run` for the last draw, and the number of draws.
 
     Raises
     ------
@@ -424,7 +441,20 @@ def draw_broken_map(
 def reference_map(
     run: LaserRun, extent: tuple[float, float, float, float], resolution: float
 ) -> OccupancyMap:
-    """A run mapped with its true poses on the box ``extent`` plus 0.5 m (the reference)."""
+    """A run mapped with its true poses on the box ``extent`` plus 0.5 m (the reference).
+
+    Parameters
+    ----------
+    run : LaserRun
+    extent : (x0, y0, x1, y1)
+        World box (metres) that holds everything the laser can see.
+    resolution : float
+        Metres per cell; the grid's lower-left corner lies on a multiple of it.
+
+    Returns
+    -------
+    OccupancyMap
+    """
     shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
     return _mapped(run, run.true_poses, resolution, shape, origin)
 

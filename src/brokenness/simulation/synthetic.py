@@ -48,7 +48,9 @@ def simulate_broken_map(
     """A synthetic broken map of known (honest) degree, its reference and ground truth.
 
     Give at most one of ``degree``, ``bumps`` and ``bump_probability`` (none: no bumps, a
-    degree-0 map whose only error is the small pose noise).
+    degree-0 map whose only error is the small pose noise). The bump keywords and those of
+    the honest rule are checked once, as a :class:`~brokenness.simulation.options.BumpOptions`,
+    before any building is generated.
 
     Parameters
     ----------
