@@ -18,7 +18,7 @@ the source's CRC-32, the seed, the degree and the attempt number):
 4. **Bumps** after the paper's model: ``degree`` bumps spread over the run (jittered),
    ``theta ~ U[0, 2 pi)``, ``d ~ U[0, 1 m]`` in a uniform direction; each bump is a pure
    shift (``theta = 0``) with probability 1/4. The draw is kept only if every partition
-   counts by the simulator's honest rule (:mod:`brokenness.simulation.synthetic`) with a
+   counts by the simulator's honest rule (:mod:`brokenness.simulation.ground_truth`) with a
    5 % minimum share, every partition's cells move by at least 0.5 m on average between
    its transform and every other partition's (clearly off), and, in the final map, every
    partition still holds at least 5 % of the occupied cells; otherwise the case is redrawn
