@@ -473,19 +473,16 @@ def break_run(
 ) -> SimulatedMap:
     """The reference of a run, a broken map of it drawn with bumps, and the ground truth.
 
-    The common part of :func:`simulate_broken_map` and
-    :func:`~brokenness.simulation.carmen.broken_log_map`.
+    The common part of :func:`~brokenness.simulation.synthetic.simulate_broken_map` and
+    :func:`~brokenness.simulation.carmen.broken_log_map`: :func:`reference_map`, then
+    :func:`draw_broken_map`.
 
     Parameters
     ----------
-    run : LaserRun
-    extent : (x0, y0, x1, y1)
-        World box (metres) that holds everything the laser can see.
-    options : BumpOptions
+    run, extent, options, hint
+        As for :func:`draw_broken_map`.
     resolution : float
         Metres per cell of both maps.
-    hint : str
-        What to try when the degree is not reached.
     setting : mapping
         The ``parameters`` entries that describe the run (building and laser, or log), put
         between the bump model's and the honest rule's.
