@@ -18,7 +18,7 @@ the source's CRC-32, the seed, the degree and the attempt number):
 4. **Bumps** after the paper's model: ``degree`` bumps spread over the run (jittered),
    ``theta ~ U[0, 2 pi)``, ``d ~ U[0, 1 m]`` in a uniform direction; each bump is a pure
    shift (``theta = 0``) with probability 1/4. The draw is kept only if every partition
-   counts by the simulator's honest rule (:mod:`brokenness.simulation.synthetic`) with a
+   counts by the simulator's honest rule (:mod:`brokenness.simulation.ground_truth`) with a
    5 % minimum share, every partition's cells move by at least 0.5 m on average between
    its transform and every other partition's (clearly off), and, in the final map, every
    partition still holds at least 5 % of the occupied cells; otherwise the case is redrawn
@@ -96,18 +96,15 @@ from brokenness.registration.methods import METHODS  # noqa: E402
 from brokenness.simulation import (  # noqa: E402
     Building,
     LaserRun,
-    counts_to_map,
     draw_k_bumps,
     frame_truth,
     generate_building,
-    grid_geometry,
     map_in_frame,
     plan_map,
-    scan_counts,
     simulate_run,
 )
 from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
-from brokenness.simulation.synthetic import broken_map_from_run  # noqa: E402
+from brokenness.simulation.ground_truth import broken_map_from_run, reference_map  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 #: Where cases are written (``--cache`` or ``BROKENNESS_BENCH_CACHE`` to share one between
@@ -268,20 +265,7 @@ def _prepare(source: str, seed: int) -> _Prepared:
 @lru_cache(maxsize=4)
 def _true_reference(source: str, seed: int, resolution: float) -> tuple[OccupancyMap, Any]:
     prep = _prepare(source, seed)
-    x0, y0, x1, y1 = prep.extent
-    shape, origin = grid_geometry([[x0, y0], [x1, y1]], resolution, margin=0.5)
-    run = prep.run
-    ref = counts_to_map(
-        scan_counts(
-            run.true_poses,
-            run.ranges,
-            run.angles,
-            max_range=run.laser.max_range,
-            resolution=resolution,
-            shape=shape,
-            origin=origin,
-        )
-    )
+    ref = reference_map(prep.run, prep.extent, resolution)
     return ref, ReferenceIndex.build(ref)
 
 

@@ -4,6 +4,10 @@
 - :mod:`.laser`: scan poses along a building's route, ray casting, range and pose noise;
 - :mod:`.mapper`: a vectorised log-odds occupancy-grid mapper for 2D laser scans;
 - :mod:`.bumps`: the paper's bump noise on the pose estimate (and an exact "k bumps" mode);
+- :mod:`.options`: :class:`BumpOptions`, the bump model of a broken map and the honest rule
+  (:class:`HonestRule`) that judges its partitions;
+- :mod:`.ground_truth`: a run's reference, its broken map, the partitions' true transforms and
+  the honest expected degree;
 - :mod:`.synthetic`: :func:`simulate_broken_map`, a broken map + reference + ground truth;
 - :mod:`.views`: a run mapped in its own frame, cropped; a building's plan as a reference;
 - :mod:`.output`: :func:`save_simulation`, maps (ROS YAML + PGM), ground-truth JSON, labels.
@@ -15,6 +19,7 @@ from .building import Building, generate_building
 from .bumps import Bump, apply_bumps, draw_bumps, draw_k_bumps
 from .laser import Laser, LaserRun, cast_rays, route_poses, simulate_run
 from .mapper import ScanCounts, counts_to_map, grid_geometry, map_prefixes, map_scans, scan_counts
+from .options import BumpOptions, HonestRule
 from .output import save_simulation
 from .synthetic import SimulatedMap, SimulatedPartition, simulate_broken_map
 from .views import frame_truth, map_in_frame, plan_map
@@ -22,6 +27,8 @@ from .views import frame_truth, map_in_frame, plan_map
 __all__ = [
     "Building",
     "Bump",
+    "BumpOptions",
+    "HonestRule",
     "Laser",
     "LaserRun",
     "ScanCounts",

@@ -39,7 +39,7 @@ Rules (documented, tested):
 Mapping (:func:`map_log`) uses :mod:`brokenness.simulation.mapper`; :func:`wall_check` measures
 whether a log maps to single walls; :func:`broken_log_map` makes broken maps of the real
 building with the bump noise of :mod:`brokenness.simulation.bumps` and the ground truth of
-:mod:`brokenness.simulation.synthetic`.
+:mod:`brokenness.simulation.ground_truth`.
 """
 
 from __future__ import annotations
@@ -52,7 +52,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -60,11 +59,11 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
-from ..masking import ReferenceIndex
 from .bumps import Bump
+from .ground_truth import SimulatedMap, break_run
 from .laser import Laser, LaserRun
 from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
-from .synthetic import _CANVAS_MARGIN, SimulatedMap, draw_broken_map
+from .options import BumpOptions, HonestRule
 
 __all__ = [
     "MAX_RANGE_MARGIN",
@@ -702,7 +701,7 @@ def log_run(
     laser has the log's beams and the mapping range (``max_range`` as in :func:`map_log`).
     The box ``(x0, y0, x1, y1)`` (metres) holds the poses and the hits within the mapping
     range. :func:`broken_log_map` breaks this run; give it to
-    :func:`~brokenness.simulation.synthetic.broken_map_from_run` to draw other bumps
+    :func:`~brokenness.simulation.ground_truth.broken_map_from_run` to draw other bumps
     without re-reading the log.
     """
     limit = _mapping_range(log, max_range)
@@ -748,8 +747,8 @@ def broken_log_map(
     scans mapped with bumps composed onto the pose chain
     (:func:`~brokenness.simulation.bumps.apply_bumps`: after bump ``j`` every pose carries the
     world error ``E_j``). The ground truth and the honest expected degree are those of
-    :func:`~brokenness.simulation.synthetic.broken_map_from_run` (see
-    :mod:`brokenness.simulation.synthetic`): each partition's transform maps a broken-map cell
+    :func:`~brokenness.simulation.ground_truth.broken_map_from_run` (see
+    :mod:`brokenness.simulation.ground_truth`): each partition's transform maps a broken-map cell
     onto the reference grid in the convention of :func:`brokenness.compute_brokenness`
     (``W_ref^-1 o E_j^-1 o W_map``), its ``world`` part is ``E_j^-1``.
 
@@ -758,7 +757,9 @@ def broken_log_map(
     two grids are identical (same shape and origin); with bumps the broken map's grid is the
     larger box (same resolution, origin on the same lattice of cells).
 
-    Give at most one of ``degree``, ``bumps`` and ``bump_probability``.
+    Give at most one of ``degree``, ``bumps`` and ``bump_probability``. The bump keywords and
+    those of the honest rule are checked once, as a
+    :class:`~brokenness.simulation.options.BumpOptions`.
 
     Parameters
     ----------
@@ -780,7 +781,7 @@ def broken_log_map(
     max_range, clear_no_returns
         As in :func:`map_log`.
     threshold, merge_threshold, min_partition_fraction, min_partition_cells
-        The honest rule of :mod:`brokenness.simulation.synthetic`.
+        The honest rule of :mod:`brokenness.simulation.ground_truth`.
     max_attempts : int
         Bound on redraws in ``degree`` mode.
 
@@ -804,80 +805,35 @@ def broken_log_map(
     >>> sim.expected_degree, len(sim.partitions)  # doctest: +SKIP
     (1, 2)
     """
-    modes = sum(v is not None for v in (degree, bumps, bump_probability))
-    if modes > 1:
-        raise ParameterError("give at most one of degree, bumps and bump_probability")
-    if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    if degree is not None and not (isinstance(degree, int | np.integer) and degree >= 0):
-        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
-    if not (0.0 <= min_rotation <= max_rotation <= 180.0):
-        raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
+    options = BumpOptions(
+        seed,
+        degree,
+        bumps,
+        bump_probability,
+        bump_radius,
+        max_rotation,
+        min_rotation,
+        max_attempts,
+        HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
+    )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
-    if not (isinstance(max_attempts, int) and max_attempts >= 1):
-        raise ParameterError("max_attempts must be a positive integer")
-    seed = int(seed)
-    limit = _mapping_range(log, max_range)
     run, extent = log_run(log, max_range=max_range, clear_no_returns=clear_no_returns)
-    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(
-        _counts(log, log.poses, resolution, shape, origin, limit, clear_no_returns)
-    )
-    reference = OccupancyMap(reference.states, reference.resolution, reference.origin, log.source)
-    index = ReferenceIndex.build(reference)
-    outcome, attempts = draw_broken_map(
-        run,
-        reference,
-        index,
-        extent,
-        seed=seed,
-        degree=degree,
-        bumps=bumps,
-        bump_probability=bump_probability,
-        bump_radius=bump_radius,
-        max_rotation=max_rotation,
-        min_rotation=min_rotation,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction,
-        min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts,
-        hint=f"{log.source or 'the log'}: try a lower degree",
-    )
-    broken, expected, parts, labels, judged, bumped = outcome
-    parameters: dict[str, Any] = {
-        "seed": seed,
-        "degree": degree,
-        "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability,
-        "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation,
-        "min_rotation_deg": min_rotation,
+    setting = {
         "resolution": resolution,
         "log": log.source,
         "message": log.message,
         "scans": log.n_scans,
         "beams": log.n_beams,
-        "max_range": limit,
+        "max_range": run.laser.max_range,
         "clear_no_returns": clear_no_returns,
-        "threshold": threshold,
-        "merge_threshold": merge_threshold,
-        "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells,
-        "attempts": attempts,
     }
-    broken = OccupancyMap(broken.states, broken.resolution, broken.origin, log.source)
-    return SimulatedMap(
-        map=broken,
-        reference=reference,
-        expected_degree=expected,
-        partitions=parts,
-        labels=labels,
-        bumps=judged,
-        seed=seed,
-        parameters=parameters,
-        building=None,
-        run=run,
-        estimated_poses=bumped.poses,
+    return break_run(
+        run,
+        extent,
+        options,
+        resolution=resolution,
+        hint=f"{log.source or 'the log'}: try a lower degree",
+        setting=setting,
+        source=log.source,
     )

@@ -44,6 +44,7 @@ __all__ = [
     "map_prefixes",
     "map_scans",
     "scan_counts",
+    "segment_labels",
 ]
 
 #: Log-odds added to a cell by each beam ending in it (p = 0.7).
@@ -304,6 +305,59 @@ def scan_counts(
         origin=origin,
         dropped_hits=dropped,
     )
+
+
+def segment_labels(
+    poses: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    segment: NDArray[np.int64],
+    drawn: OccupancyMap,
+    *,
+    max_range: float,
+) -> NDArray[np.int16]:
+    """Per occupied cell of a map, the segment of the run whose scans hit it most often.
+
+    Ties go to the first segment; cells that are not occupied get -1. The hits are counted
+    one segment at a time on the map's grid (only hits, as :func:`scan_counts` with
+    ``free_space=False``).
+
+    Parameters
+    ----------
+    poses, ranges, angles
+        The scans, as for :func:`scan_counts`.
+    segment : ndarray of int, shape (N,)
+        Segment (partition) of each scan.
+    drawn : OccupancyMap
+        The map the scans drew (with its resolution and origin).
+    max_range : float
+        As for :func:`scan_counts`.
+
+    Returns
+    -------
+    ndarray of int16
+        Of the map's shape.
+    """
+    if drawn.resolution is None or drawn.origin is None:
+        raise ParameterError("segment labels need a map with a resolution and an origin")
+    best = np.zeros(drawn.shape, dtype=np.int32)
+    owner = np.zeros(drawn.shape, dtype=np.int16)
+    for j in np.unique(segment):
+        sel = segment == j
+        hits = scan_counts(
+            poses[sel],
+            ranges[sel],
+            angles,
+            max_range=max_range,
+            resolution=drawn.resolution,
+            shape=drawn.shape,
+            origin=drawn.origin,
+            free_space=False,
+        ).hits
+        more = hits > best
+        owner[more] = j
+        best[more] = hits[more]
+    return np.where(drawn.occupied, owner, -1).astype(np.int16)
 
 
 def counts_to_map(

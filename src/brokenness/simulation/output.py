@@ -20,7 +20,7 @@ import numpy as np
 from .._atomic import atomic_write_bytes
 from ..errors import ParameterError
 from ..io import save_map
-from .synthetic import SimulatedMap
+from .ground_truth import SimulatedMap
 
 __all__ = ["save_simulation"]
 

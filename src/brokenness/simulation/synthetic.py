@@ -1,464 +1,28 @@
 """Broken maps of known degree: a synthetic building, a laser run, bump noise, ground truth.
 
 :func:`simulate_broken_map` generates a building (:mod:`.building`), drives a laser robot
-through it (:mod:`.laser`), maps the run twice with :func:`.mapper.map_scans` -- with the
-true poses (the *reference*) and with the bumped estimate (the *broken map*) -- and derives
-the ground truth of every partition.
-
-Geometry
---------
-Both maps have the same resolution. The reference covers the building plus 0.5 m. Scans of
-segment ``j`` (between bump ``j`` and bump ``j + 1``; segment 0 before the first bump) were
-drawn with the estimated poses ``E_j o true pose``, so everything they see lies inside
-``E_j(building)``: the broken map's canvas is the bounding box of all ``E_j(building)`` plus
-0.5 m (its lower-left corner on a multiple of the resolution), so no scan falls off it.
-Without bumps the two canvases are identical.
-
-Ground truth
-------------
-Partition ``j`` is the set of occupied broken-map cells that scans of segment ``j`` hit most
-often (the ``labels`` image). Its true transform, in the convention of
-:func:`brokenness.compute_brokenness` (broken-map cell -> reference cell), is
-``W_ref^-1 o E_j^-1 o W_map`` with ``W`` each map's :meth:`~brokenness.OccupancyMap.
-cell_to_world_matrix`; its ``world`` part is ``E_j^-1``.
-
-The expected degree (the honest rule)
--------------------------------------
-Partitions are examined largest first. A partition *counts* when
-
-1. it holds at least ``max(min_partition_fraction * N, min_partition_cells)`` cells (N =
-   occupied cells of the broken map; defaults 2 % and 30, those of ``compute_brokenness``);
-2. at least half of its cells agree with the reference under its own transform (Manhattan
-   distance to an occupied reference cell <= ``threshold`` = 2 cells);
-3. for every partition counted before it, its transform differs: the mean displacement of
-   its cells between the two transforms exceeds ``merge_threshold`` (4 cells = 2 x 2, the
-   default merge threshold of ``compute_brokenness``), *and* it is not explained by that
-   transform either: the chance-corrected share of its cells agreeing within
-   ``merge_threshold`` under the other transform, ``(s - q) / (1 - q)`` with ``q`` the
-   reference's chance agreement, is below 0.5 (``compute_brokenness``'s merge rule; catches
-   e.g. a shift along a featureless corridor).
-
-``expected_degree`` = counted partitions - 1. A bump whose partition does not count is
-reported with ``counted = False`` and the reason. Partition 0 (before the first bump) is
-judged like the others: after an early bump it may be too small, and then the degree is the
-number of counted bumps minus one.
+through it (:mod:`.laser`) and breaks the run with bump noise: :func:`.ground_truth.break_run`
+maps it with the true poses (the *reference*, the building plus 0.5 m) and with the bumped
+estimate (the *broken map*) and derives the ground truth of every partition and the honest
+expected degree (see :mod:`.ground_truth` for the geometry and the rule).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..errors import ParameterError
-from ..grid import OccupancyMap
-from ..masking import ReferenceIndex, cell_points
-from ..transform import RigidTransform
-from .building import Building, generate_building
-from .bumps import Bump, BumpedPoses, apply_bumps, draw_bumps, draw_k_bumps
-from .laser import Laser, LaserRun, simulate_run
-from .mapper import counts_to_map, grid_geometry, scan_counts
+from .building import generate_building
+from .bumps import Bump
+from .ground_truth import NOT_OCCUPIED as NOT_OCCUPIED  # defined here before ground_truth
+from .ground_truth import SimulatedMap, SimulatedPartition, break_run, broken_map_from_run
+from .laser import Laser, simulate_run
+from .options import BumpOptions, HonestRule
 
 __all__ = ["SimulatedMap", "SimulatedPartition", "broken_map_from_run", "simulate_broken_map"]
-
-#: Label of cells that are not occupied in the broken map.
-NOT_OCCUPIED = -1
-_CANVAS_MARGIN = 0.5  # metres around the building (and around every E_j(building))
-
-
-@dataclass(frozen=True)
-class SimulatedPartition:
-    """Ground truth of one partition: the cells drawn by scans ``[first_scan, end_scan)``.
-
-    Attributes
-    ----------
-    index : int
-        Segment index (0 before the first bump, ``j`` after bump ``j - 1``).
-    first_scan, end_scan : int
-    transform : RigidTransform
-        Broken-map cell -> reference cell (``world``: broken-map metres -> reference metres).
-    cells : int
-        Occupied broken-map cells labelled with this partition.
-    share : float
-        ``cells`` / occupied cells of the broken map.
-    agreement : float
-        Share of its cells within ``threshold`` of an occupied reference cell when moved by
-        ``transform``.
-    counted : bool
-    reason : str
-        Why it counts or not.
-    """
-
-    index: int
-    first_scan: int
-    end_scan: int
-    transform: RigidTransform
-    cells: int
-    share: float
-    agreement: float
-    counted: bool
-    reason: str
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary."""
-        return {
-            "index": self.index,
-            "scans": [self.first_scan, self.end_scan],
-            "transform": self.transform.to_dict(),
-            "cells": self.cells,
-            "share": self.share,
-            "agreement": self.agreement,
-            "counted": self.counted,
-            "reason": self.reason,
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class SimulatedMap:
-    """A broken map, its reference and the ground truth (see the module docstring).
-
-    Attributes
-    ----------
-    map : OccupancyMap
-        The broken map (mapped with the bumped pose estimate).
-    reference : OccupancyMap
-        The same run mapped with the true poses.
-    expected_degree : int
-    partitions : tuple of SimulatedPartition
-        One per segment of the run, in scan order.
-    labels : ndarray of int16
-        Per broken-map cell, the partition that drew it; -1 where not occupied.
-    bumps : tuple of Bump
-        With ``counted`` / ``reason`` set (bump ``j`` starts partition ``j + 1``).
-    seed : int
-    parameters : dict
-        Every parameter of the run (JSON-ready).
-    building : Building
-    run : LaserRun
-    estimated_poses : ndarray, shape (N, 3)
-        The bumped pose estimate the broken map was drawn with.
-    """
-
-    map: OccupancyMap
-    reference: OccupancyMap
-    expected_degree: int
-    partitions: tuple[SimulatedPartition, ...]
-    labels: NDArray[np.int16]
-    bumps: tuple[Bump, ...]
-    seed: int
-    parameters: dict[str, Any] = field(default_factory=dict)
-    building: Building | None = None
-    run: LaserRun | None = None
-    estimated_poses: NDArray[np.float64] | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready ground truth (no arrays)."""
-        return {
-            "seed": self.seed,
-            "parameters": self.parameters,
-            "expected_degree": self.expected_degree,
-            "bumps": [b.to_dict() for b in self.bumps],
-            "partitions": [p.to_dict() for p in self.partitions],
-            "occupied_cells": self.map.n_occupied,
-            "map": {
-                "shape": list(self.map.shape),
-                "resolution": self.map.resolution,
-                "origin": list(self.map.origin or ()),
-            },
-            "reference": {
-                "shape": list(self.reference.shape),
-                "resolution": self.reference.resolution,
-                "origin": list(self.reference.origin or ()),
-            },
-        }
-
-
-def _broken_canvas(
-    errors: Sequence[NDArray[np.float64]],
-    extent: tuple[float, float, float, float],
-    poses: NDArray[np.float64],
-    resolution: float,
-) -> tuple[tuple[int, int], tuple[float, float, float]]:
-    x0, y0, x1, y1 = extent
-    corners = np.array([[x0, y0, 1.0], [x1, y0, 1.0], [x1, y1, 1.0], [x0, y1, 1.0]])
-    pts = [(corners @ e.T)[:, :2] for e in errors] + [poses[:, :2]]
-    return grid_geometry(np.concatenate(pts), resolution, margin=_CANVAS_MARGIN)
-
-
-def _judge(
-    transforms: list[RigidTransform],
-    points: list[NDArray[np.float64]],
-    n_occupied: int,
-    index: ReferenceIndex,
-    *,
-    threshold: float,
-    merge_threshold: float,
-    min_fraction: float,
-    min_cells: int,
-) -> tuple[list[float], list[bool], list[str]]:
-    """The honest rule of the module docstring: agreement, counted, reason per partition."""
-    n = len(points)
-    need = max(min_fraction * n_occupied, float(min_cells))
-    q = index.chance_agreement(merge_threshold)
-    agreement = [
-        float(index.occupied_agreement(transforms[j].apply(points[j]), threshold).mean())
-        if len(points[j])
-        else 0.0
-        for j in range(n)
-    ]
-    counted = [False] * n
-    reason = [""] * n
-    chosen: list[int] = []
-    for j in sorted(range(n), key=lambda j: (-len(points[j]), j)):
-        p = points[j]
-        if len(p) < need:
-            reason[j] = (
-                f"too small: {len(p)} cells = {100 * len(p) / max(n_occupied, 1):.2f} % "
-                f"of the occupied cells (< {need:.0f})"
-            )
-            continue
-        if agreement[j] < 0.5:
-            reason[j] = (
-                f"only {100 * agreement[j]:.0f} % of its cells agree with the reference "
-                "under its own transform"
-            )
-            continue
-        why = ""
-        for i in chosen:
-            disp = float(transforms[j].displacement(transforms[i], p).mean())
-            if disp <= merge_threshold:
-                why = (
-                    f"same transform as partition {i}: mean displacement {disp:.2f} cells "
-                    f"(<= {merge_threshold:g})"
-                )
-                break
-            s = float(index.occupied_agreement(transforms[i].apply(p), merge_threshold).mean())
-            if q < 1.0 and (s - q) / (1.0 - q) >= 0.5:
-                why = (
-                    f"explained by partition {i}'s transform: {100 * s:.0f} % of its cells "
-                    f"agree within {merge_threshold:g} cells under it (chance {100 * q:.0f} %)"
-                )
-                break
-        if why:
-            reason[j] = why
-            continue
-        counted[j] = True
-        reason[j] = "largest partition" if not chosen else "distinct"
-        chosen.append(j)
-    return agreement, counted, reason
-
-
-def broken_map_from_run(
-    run: LaserRun,
-    reference: OccupancyMap,
-    bumps: Sequence[Bump],
-    *,
-    extent: tuple[float, float, float, float],
-    index: ReferenceIndex | None = None,
-    threshold: float = 2.0,
-    merge_threshold: float = 4.0,
-    min_partition_fraction: float = 0.02,
-    min_partition_cells: int = 30,
-) -> tuple[
-    OccupancyMap,
-    int,
-    tuple[SimulatedPartition, ...],
-    NDArray[np.int16],
-    tuple[Bump, ...],
-    BumpedPoses,
-]:
-    """Map a run with bumps composed onto its pose estimate; judge the partitions.
-
-    Parameters
-    ----------
-    run : LaserRun
-    reference : OccupancyMap
-        The run mapped with the true poses.
-    bumps : sequence of Bump
-    extent : (x0, y0, x1, y1)
-        World box (metres) that holds everything the laser can see.
-    index : ReferenceIndex, optional
-        Of ``reference`` (built if not given).
-    threshold, merge_threshold, min_partition_fraction, min_partition_cells
-        The honest rule (module docstring).
-
-    Returns
-    -------
-    tuple
-        ``(map, expected_degree, partitions, labels, bumps with verdicts, bumped poses)``.
-    """
-    res = reference.resolution
-    if res is None:
-        raise ParameterError("the reference needs a resolution")
-    index = ReferenceIndex.build(reference) if index is None else index
-    bp = apply_bumps(run.noisy_poses, bumps)
-    shape, origin = _broken_canvas(bp.errors, extent, bp.poses, res)
-    max_range = run.laser.max_range
-    counts = scan_counts(
-        bp.poses,
-        run.ranges,
-        run.angles,
-        max_range=max_range,
-        resolution=res,
-        shape=shape,
-        origin=origin,
-    )
-    broken = counts_to_map(counts)
-    n_seg = len(bp.errors)
-    # label = the segment with the most hits in the cell (first one on ties); one grid at a time
-    best = np.zeros(shape, dtype=np.int32)
-    owner = np.zeros(shape, dtype=np.int16)
-    for j in range(n_seg):
-        sel = bp.segment == j
-        hits = scan_counts(
-            bp.poses[sel],
-            run.ranges[sel],
-            run.angles,
-            max_range=max_range,
-            resolution=res,
-            shape=shape,
-            origin=origin,
-            free_space=False,
-        ).hits
-        more = hits > best
-        owner[more] = j
-        best[more] = hits[more]
-    occupied = broken.occupied
-    labels = np.where(occupied, owner, NOT_OCCUPIED).astype(np.int16)
-    w_map = broken.cell_to_world_matrix()
-    w_ref_inv = np.linalg.inv(reference.cell_to_world_matrix())
-    transforms = [
-        RigidTransform.from_matrix(w_ref_inv @ np.linalg.inv(e) @ w_map).with_world(
-            broken, reference
-        )
-        for e in bp.errors
-    ]
-    points = [cell_points(labels == j) for j in range(n_seg)]
-    n_occ = broken.n_occupied
-    agreement, counted, reason = _judge(
-        transforms,
-        points,
-        n_occ,
-        index,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_fraction=min_partition_fraction,
-        min_cells=min_partition_cells,
-    )
-    firsts = [0] + [b.scan for b in bp.bumps]
-    ends = firsts[1:] + [len(bp.poses)]
-    parts = tuple(
-        SimulatedPartition(
-            j,
-            firsts[j],
-            ends[j],
-            transforms[j],
-            len(points[j]),
-            len(points[j]) / max(n_occ, 1),
-            agreement[j],
-            counted[j],
-            reason[j],
-        )
-        for j in range(n_seg)
-    )
-    judged = tuple(
-        b.with_verdict(counted[j + 1], "" if counted[j + 1] else reason[j + 1])
-        for j, b in enumerate(bp.bumps)
-    )
-    return broken, sum(counted) - 1, parts, labels, judged, bp
-
-
-def draw_broken_map(
-    run: LaserRun,
-    reference: OccupancyMap,
-    index: ReferenceIndex,
-    extent: tuple[float, float, float, float],
-    *,
-    seed: int,
-    degree: int | None,
-    bumps: int | Sequence[Bump] | None,
-    bump_probability: float | None,
-    bump_radius: float,
-    max_rotation: float,
-    min_rotation: float,
-    threshold: float,
-    merge_threshold: float,
-    min_partition_fraction: float,
-    min_partition_cells: int,
-    max_attempts: int,
-    hint: str,
-) -> tuple[Any, int]:
-    """Draw bumps for a run and map it with them; with ``degree``, redraw until it counts.
-
-    Shared by synthetic runs and real logs. Bumps come from ``degree`` (exactly that many,
-    redrawn up to ``max_attempts`` times until the honest expected degree equals it),
-    ``bump_probability`` (the paper's model), ``bumps`` (a count drawn once, or explicit
-    bumps). Angles are in degrees. Returns the outcome of :func:`broken_map_from_run` and
-    the number of draws.
-
-    Raises
-    ------
-    ParameterError
-        If no draw gives the requested degree (``hint`` says what to try).
-    """
-    n_scans = len(run.true_poses)
-    max_rot, min_rot = math.radians(max_rotation), math.radians(min_rotation)
-
-    def attempt(k: int) -> list[Bump]:
-        rng = np.random.default_rng([seed, 2, k])
-        if degree is not None:
-            return draw_k_bumps(
-                n_scans,
-                int(degree),
-                radius=bump_radius,
-                max_rotation=max_rot,
-                min_rotation=min_rot,
-                rng=rng,
-            )
-        if bump_probability is not None:
-            return draw_bumps(
-                n_scans, float(bump_probability), radius=bump_radius, max_rotation=max_rot, rng=rng
-            )
-        if isinstance(bumps, int | np.integer):
-            return draw_k_bumps(
-                n_scans,
-                int(bumps),
-                radius=bump_radius,
-                max_rotation=max_rot,
-                min_rotation=min_rot,
-                rng=rng,
-                spread=False,
-            )
-        return list(bumps or [])
-
-    tries = max_attempts if degree is not None else 1
-    seen: list[int] = []
-    outcome = None
-    for k in range(tries):
-        outcome = broken_map_from_run(
-            run,
-            reference,
-            attempt(k),
-            extent=extent,
-            index=index,
-            threshold=threshold,
-            merge_threshold=merge_threshold,
-            min_partition_fraction=min_partition_fraction,
-            min_partition_cells=min_partition_cells,
-        )
-        seen.append(outcome[1])
-        if degree is None or outcome[1] == degree:
-            break
-    if outcome is None or (degree is not None and outcome[1] != degree):
-        raise ParameterError(
-            f"could not make a map of degree {degree} in {max_attempts} draws (got degrees "
-            f"{sorted(set(seen))}); {hint}"
-        )
-    return outcome, len(seen)
 
 
 def simulate_broken_map(
@@ -484,7 +48,9 @@ def simulate_broken_map(
     """A synthetic broken map of known (honest) degree, its reference and ground truth.
 
     Give at most one of ``degree``, ``bumps`` and ``bump_probability`` (none: no bumps, a
-    degree-0 map whose only error is the small pose noise).
+    degree-0 map whose only error is the small pose noise). The bump keywords and those of
+    the honest rule are checked once, as a :class:`~brokenness.simulation.options.BumpOptions`,
+    before any building is generated.
 
     Parameters
     ----------
@@ -537,75 +103,32 @@ def simulate_broken_map(
     >>> sim.expected_degree, sim.map.resolution == sim.reference.resolution
     (2, True)
     """
-    modes = sum(v is not None for v in (degree, bumps, bump_probability))
-    if modes > 1:
-        raise ParameterError("give at most one of degree, bumps and bump_probability")
-    if not isinstance(seed, int | np.integer) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    if degree is not None and not (isinstance(degree, int | np.integer) and degree >= 0):
-        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
-    if not (0.0 <= min_rotation <= max_rotation <= 180.0):
-        raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
+    options = BumpOptions(
+        seed,
+        degree,
+        bumps,
+        bump_probability,
+        bump_radius,
+        max_rotation,
+        min_rotation,
+        max_attempts,
+        HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
+    )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
-    if not (isinstance(max_attempts, int) and max_attempts >= 1):
-        raise ParameterError("max_attempts must be a positive integer")
     width, height = (size, size) if isinstance(size, int | float) else size
     laser = Laser() if laser is None else laser
-    seed = int(seed)
     building = generate_building(
-        seed, width=float(width), height=float(height), truth_resolution=resolution / 2
+        options.seed, width=float(width), height=float(height), truth_resolution=resolution / 2
     )
     run = simulate_run(
         building,
         laser=laser,
         spacing=spacing,
         pose_sigma=pose_sigma,
-        rng=np.random.default_rng([seed, 1]),
+        rng=np.random.default_rng([options.seed, 1]),
     )
-    extent = (0.0, 0.0, building.width, building.height)
-    shape, origin = grid_geometry([extent[:2], extent[2:]], resolution, margin=_CANVAS_MARGIN)
-    reference = counts_to_map(
-        scan_counts(
-            run.true_poses,
-            run.ranges,
-            run.angles,
-            max_range=laser.max_range,
-            resolution=resolution,
-            shape=shape,
-            origin=origin,
-        )
-    )
-    index = ReferenceIndex.build(reference)
-    n_scans = len(run.true_poses)
-    outcome, attempts = draw_broken_map(
-        run,
-        reference,
-        index,
-        extent,
-        seed=seed,
-        degree=degree,
-        bumps=bumps,
-        bump_probability=bump_probability,
-        bump_radius=bump_radius,
-        max_rotation=max_rotation,
-        min_rotation=min_rotation,
-        threshold=threshold,
-        merge_threshold=merge_threshold,
-        min_partition_fraction=min_partition_fraction,
-        min_partition_cells=min_partition_cells,
-        max_attempts=max_attempts,
-        hint="use a larger building or a lower degree",
-    )
-    broken, expected, parts, labels, judged, bp = outcome
-    parameters: dict[str, Any] = {
-        "seed": seed,
-        "degree": degree,
-        "bumps": bumps if bumps is None or isinstance(bumps, int | np.integer) else "explicit",
-        "bump_probability": bump_probability,
-        "bump_radius": bump_radius,
-        "max_rotation_deg": max_rotation,
-        "min_rotation_deg": min_rotation,
+    setting = {
         "size_m": [float(width), float(height)],
         "resolution": resolution,
         "laser": {
@@ -616,23 +139,14 @@ def simulate_broken_map(
         },
         "spacing": spacing,
         "pose_sigma": [pose_sigma[0], math.degrees(pose_sigma[1])],
-        "threshold": threshold,
-        "merge_threshold": merge_threshold,
-        "min_partition_fraction": min_partition_fraction,
-        "min_partition_cells": min_partition_cells,
-        "attempts": attempts,
-        "scans": n_scans,
     }
-    return SimulatedMap(
-        map=broken,
-        reference=reference,
-        expected_degree=expected,
-        partitions=parts,
-        labels=labels,
-        bumps=judged,
-        seed=seed,
-        parameters=parameters,
+    return break_run(
+        run,
+        (0.0, 0.0, building.width, building.height),
+        options,
+        resolution=resolution,
+        hint="use a larger building or a lower degree",
+        setting=setting,
+        extra={"scans": len(run.true_poses)},
         building=building,
-        run=run,
-        estimated_poses=bp.poses,
     )

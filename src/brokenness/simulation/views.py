@@ -4,7 +4,7 @@
 world frame -- the SLAM run "started anywhere": the whole map turned and shifted by a rigid
 ``frame`` -- on a grid cropped to what the scans saw, three-state (free by ray casting,
 unknown elsewhere), and labels each occupied cell with the segment of the run whose scans hit
-it most often (the partitions of :mod:`brokenness.simulation.synthetic`).
+it most often (the partitions of :mod:`brokenness.simulation.ground_truth`).
 
 :func:`plan_map` rasterises a synthetic building's plan (:attr:`Building.grid`) as a
 reference: every wall and clutter object occupied, including walls the robot never saw, the
@@ -27,7 +27,7 @@ from ..errors import ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
 from .building import Building
-from .mapper import counts_to_map, grid_geometry, scan_counts
+from .mapper import counts_to_map, grid_geometry, scan_counts, segment_labels
 
 __all__ = ["frame_truth", "map_in_frame", "plan_map"]
 
@@ -92,18 +92,11 @@ def map_in_frame(
         [moved[:, 0:1] + r * np.cos(heading), moved[:, 1:2] + r * np.sin(heading)], axis=-1
     )[hit]
     shape, origin = grid_geometry(np.concatenate([ends, moved[:, :2]]), resolution, margin)
-    kw = {"max_range": max_range, "resolution": resolution, "shape": shape, "origin": origin}
-    m = counts_to_map(scan_counts(moved, r, a, **kw))  # type: ignore[arg-type]
-    best = np.zeros(shape, dtype=np.int32)
-    owner = np.zeros(shape, dtype=np.int16)
-    for j in np.unique(seg):
-        sel = seg == j
-        hits = scan_counts(moved[sel], r[sel], a, free_space=False, **kw).hits  # type: ignore[arg-type]
-        more = hits > best
-        owner[more] = j
-        best[more] = hits[more]
-    labels = np.where(m.occupied, owner, -1).astype(np.int16)
-    return m, labels
+    counts = scan_counts(
+        moved, r, a, max_range=max_range, resolution=resolution, shape=shape, origin=origin
+    )
+    m = counts_to_map(counts)
+    return m, segment_labels(moved, r, a, seg, m, max_range=max_range)
 
 
 def frame_truth(
