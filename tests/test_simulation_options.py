@@ -181,3 +181,18 @@ def test_segment_labels_most_hits_first_on_ties() -> None:
         segment_labels(
             poses, ranges, angles, np.zeros(3, np.int64), OccupancyMap(drawn.states), max_range=4.0
         )
+
+
+def test_numpy_integers_become_plain_numbers_so_the_simulation_writes_as_json() -> None:
+    import json
+
+    assert type(BumpOptions(degree=np.int64(2)).degree) is int
+    assert type(BumpOptions(bumps=np.int32(3)).bumps) is int
+    sim = simulate_broken_map(seed=1, degree=np.int64(1), size=8.0)
+    assert sim.parameters["degree"] == 1 and type(sim.parameters["degree"]) is int
+    assert json.loads(json.dumps(sim.to_dict()))["parameters"]["degree"] == 1
+
+
+def test_a_building_too_small_for_a_route_is_a_parameter_error() -> None:
+    with pytest.raises(ParameterError, match="at least two waypoints"):
+        simulate_broken_map(seed=1, degree=1, size=6.0)

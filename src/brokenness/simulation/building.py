@@ -380,7 +380,7 @@ def generate_building(
                     rng.uniform(y0 + radius + 0.3, y1 - radius - 0.3),
                 ]
             )
-            if _segment_distance(p, seg_a, seg_b).min() < radius + 0.45:
+            if seg_a.size and _segment_distance(p, seg_a, seg_b).min() < radius + 0.45:
                 continue
             if rng.random() < 0.3:
                 cx_, cy_ = to_px(p[0], p[1])

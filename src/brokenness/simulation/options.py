@@ -127,8 +127,14 @@ class BumpOptions:
             raise ParameterError("need 0 <= min_rotation <= max_rotation <= 180 degrees")
         if not (isinstance(self.max_attempts, int) and self.max_attempts >= 1):
             raise ParameterError("max_attempts must be a positive integer")
+        # plain Python numbers from here on: numpy integers would reach ``parameters`` (and
+        # make a simulation's JSON fail)
         object.__setattr__(self, "seed", int(seed))
-        if not (self.bumps is None or isinstance(self.bumps, int | np.integer)):
+        if degree is not None:
+            object.__setattr__(self, "degree", int(degree))
+        if isinstance(self.bumps, int | np.integer):
+            object.__setattr__(self, "bumps", int(self.bumps))
+        elif self.bumps is not None:
             object.__setattr__(self, "bumps", tuple(self.bumps))
 
     @property
