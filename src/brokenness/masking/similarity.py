@@ -77,6 +77,50 @@ def _distance_sum(
         level = _level_pass(level)
 
 
+#: A box of cells ``(r0, r1, c0, c1)``: rows ``r0 .. r1 - 1``, columns ``c0 .. c1 - 1``.
+_Box = tuple[int, int, int, int]
+
+
+def _union(a: _Box | None, b: _Box | None) -> _Box | None:
+    """The smallest box holding both boxes (``None`` is the empty box)."""
+    if a is None or b is None:
+        return a if b is None else b
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
+def _kind_box(
+    states: NDArray[np.int8], kind: int, other: NDArray[np.int8] | None = None
+) -> _Box | None:
+    """Bounding box of the ``kind`` cells of ``states`` (only those that are not ``kind`` in
+    ``other`` when it is given), or ``None`` when there is none; in bands of rows."""
+    box: _Box | None = None
+    for r in range(0, states.shape[0], _BAND_ROWS):
+        cells = states[r : r + _BAND_ROWS] == kind
+        if other is not None:
+            cells &= other[r : r + _BAND_ROWS] != kind
+        x, y, w, h = cv2.boundingRect(cells.view(np.uint8))
+        if w:
+            box = _union(box, (r + y, r + y + h, x, x + w))
+    return box
+
+
+def _needed_box(of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int) -> _Box | None:
+    """The part of the grid that the distances from the ``kind`` cells of ``of_states`` to the
+    nearest ``kind`` cell of ``to_states`` need, or ``None`` when every one of them is 0.
+
+    Only the cells of ``kind`` in ``of_states`` and not in ``to_states`` are at a distance
+    other than 0. The box of those and of all the ``kind`` cells of ``to_states`` holds every
+    ``kind`` cell of ``of_states`` (each is one or the other) and every target, so every
+    nearest target is inside it; and a shortest Manhattan lattice path between two cells of
+    a box stays in the box (it can go monotonically). The distances computed in the box are
+    therefore those of the whole grid, cell for cell.
+    """
+    off = _kind_box(of_states, kind, to_states)
+    if off is None:
+        return None
+    return _union(off, _kind_box(to_states, kind))
+
+
 def _mean_distance(
     of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, cap: float
 ) -> float:
@@ -84,13 +128,20 @@ def _mean_distance(
     ``kind`` cell of ``to_states`` (``cap`` a cell when ``to_states`` has none).
 
     Distances are whole numbers, so their sum is exact in integers (and equal to the float64
-    sum of the float32 distances, which is exact below 2**53)."""
+    sum of the float32 distances, which is exact below 2**53). The distance maps cover only
+    :func:`_needed_box` (none at all when the two maps have the same ``kind`` cells), which
+    gives the same distances as the whole grid."""
     count = _count(of_states, kind)
     if count == 0:
         return 0.0
     if _count(to_states, kind) == 0:
         return float(np.float64(cap) * count) / count
-    return float(_distance_sum(of_states, kind, to_states, kind)) / count
+    box = _needed_box(of_states, to_states, kind)
+    if box is None:
+        return 0.0
+    r0, r1, c0, c1 = box
+    of_box, to_box = of_states[r0:r1, c0:c1], to_states[r0:r1, c0:c1]
+    return float(_distance_sum(of_box, kind, to_box, kind)) / count
 
 
 def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
@@ -105,7 +156,9 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     in one map to the nearest cell of the same kind in the other map, both ways. Unknown cells
     take no part. 0 means identical occupied and free sets; the value grows with noise,
     shifts and rotations. Distance maps make it linear in the number of cells; they are
-    one byte a cell (saturated passes, exact), and every sum is taken in bands of rows.
+    one byte a cell (saturated passes, exact), cover only the box of the cells that are
+    at a distance other than 0 and of their targets (nothing when both maps have the same
+    cells of a kind), and every sum is taken in bands of rows.
 
     Parameters
     ----------
