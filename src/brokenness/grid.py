@@ -84,8 +84,10 @@ class OccupancyMap:
             if not np.issubdtype(states.dtype, np.integer):
                 raise MapError(f"map states must be integers -1/0/1, got dtype {states.dtype}")
             states = states.astype(np.int8)
-        bad = (states != OCCUPIED) & (states != FREE) & (states != UNKNOWN)
-        if bad.any():
+        # the three states are the consecutive integers -1, 0, 1: an int8 grid holds nothing
+        # else exactly when its smallest and largest values are within them (two reductions,
+        # no temporary grid)
+        if int(states.min()) < UNKNOWN or int(states.max()) > OCCUPIED:
             raise MapError("map states must be -1 (unknown), 0 (free) or 1 (occupied)")
         if states is self.states and states.flags.writeable:
             states = states.copy()
