@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -88,55 +90,91 @@ def _union(a: _Box | None, b: _Box | None) -> _Box | None:
     return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
 
 
-def _kind_box(
-    states: NDArray[np.int8], kind: int, other: NDArray[np.int8] | None = None
-) -> _Box | None:
-    """Bounding box of the ``kind`` cells of ``states`` (only those that are not ``kind`` in
-    ``other`` when it is given), or ``None`` when there is none; in bands of rows."""
+def _mask_box(masks: Iterator[tuple[int, NDArray[np.bool_]]]) -> _Box | None:
+    """Bounding box of the True cells of a mask given band by band as ``(first row, band)``,
+    or ``None`` when there is none."""
     box: _Box | None = None
-    for r in range(0, states.shape[0], _BAND_ROWS):
-        cells = states[r : r + _BAND_ROWS] == kind
-        if other is not None:
-            cells &= other[r : r + _BAND_ROWS] != kind
-        x, y, w, h = cv2.boundingRect(cells.view(np.uint8))
+    for r, band in masks:
+        x, y, w, h = cv2.boundingRect(np.ascontiguousarray(band).view(np.uint8))
         if w:
             box = _union(box, (r + y, r + y + h, x, x + w))
     return box
 
 
-def _needed_box(of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int) -> _Box | None:
+def _row_bands(rows: int) -> range:
+    return range(0, rows, _BAND_ROWS)
+
+
+def _differ_box(a: NDArray[np.int8], b: NDArray[np.int8]) -> _Box | None:
+    """Bounding box of the cells whose states differ in ``a`` and ``b`` (``None``: none)."""
+    return _mask_box(
+        (r, a[r : r + _BAND_ROWS] != b[r : r + _BAND_ROWS]) for r in _row_bands(a.shape[0])
+    )
+
+
+def _kind_box(states: NDArray[np.int8], kind: int) -> _Box | None:
+    """Bounding box of the ``kind`` cells of ``states`` (``None`` when there is none)."""
+    return _mask_box((r, states[r : r + _BAND_ROWS] == kind) for r in _row_bands(states.shape[0]))
+
+
+def _off_box(
+    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, differ: _Box
+) -> _Box | None:
+    """Bounding box of the cells of ``kind`` in ``of_states`` and not in ``to_states``: all
+    within ``differ``, the box of the cells where the two maps differ."""
+    r0, r1, c0, c1 = differ
+    of, to = of_states[r0:r1, c0:c1], to_states[r0:r1, c0:c1]
+    box = _mask_box(
+        (r, (of[r : r + _BAND_ROWS] == kind) & (to[r : r + _BAND_ROWS] != kind))
+        for r in _row_bands(r1 - r0)
+    )
+    return None if box is None else (box[0] + r0, box[1] + r0, box[2] + c0, box[3] + c0)
+
+
+def _needed_box(
+    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, differ: _Box | None
+) -> _Box | None:
     """The part of the grid that the distances from the ``kind`` cells of ``of_states`` to the
     nearest ``kind`` cell of ``to_states`` need, or ``None`` when every one of them is 0.
 
     Only the cells of ``kind`` in ``of_states`` and not in ``to_states`` are at a distance
-    other than 0. The box of those and of all the ``kind`` cells of ``to_states`` holds every
-    ``kind`` cell of ``of_states`` (each is one or the other) and every target, so every
-    nearest target is inside it; and a shortest Manhattan lattice path between two cells of
-    a box stays in the box (it can go monotonically). The distances computed in the box are
-    therefore those of the whole grid, cell for cell.
+    other than 0 (and they lie where the maps differ, in ``differ``). The box of those and
+    of all the ``kind`` cells of ``to_states`` holds every ``kind`` cell of ``of_states``
+    (each is one or the other) and every target, so every nearest target is inside it; and
+    a shortest Manhattan lattice path between two cells of a box stays in the box (it can go
+    monotonically). The distances computed in the box are therefore those of the whole
+    grid, cell for cell.
     """
-    off = _kind_box(of_states, kind, to_states)
+    if differ is None:
+        return None
+    off = _off_box(of_states, to_states, kind, differ)
     if off is None:
         return None
     return _union(off, _kind_box(to_states, kind))
 
 
 def _mean_distance(
-    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, cap: float
+    of_states: NDArray[np.int8],
+    to_states: NDArray[np.int8],
+    kind: int,
+    cap: float,
+    counts: tuple[int, int],
+    differ: _Box | None,
 ) -> float:
     """Mean Manhattan distance from each ``kind`` cell of ``of_states`` to the nearest
     ``kind`` cell of ``to_states`` (``cap`` a cell when ``to_states`` has none).
 
-    Distances are whole numbers, so their sum is exact in integers (and equal to the float64
-    sum of the float32 distances, which is exact below 2**53). The distance maps cover only
-    :func:`_needed_box` (none at all when the two maps have the same ``kind`` cells), which
-    gives the same distances as the whole grid."""
-    count = _count(of_states, kind)
+    ``counts`` are the numbers of ``kind`` cells of the two, ``differ`` the box of the cells
+    where they differ. Distances are whole numbers, so their sum is exact in integers (and
+    equal to the float64 sum of the float32 distances, which is exact below 2**53). The
+    distance maps cover only :func:`_needed_box` (none at all when the two maps have the
+    same ``kind`` cells), which gives the same distances as the whole grid."""
+    count, targets = counts
     if count == 0:
         return 0.0
-    if _count(to_states, kind) == 0:
+    if targets == 0:
         return float(np.float64(cap) * count) / count
-    box = _needed_box(of_states, to_states, kind)
+    box = _needed_box(of_states, to_states, kind, differ)
     if box is None:
         return 0.0
     r0, r1, c0, c1 = box
@@ -193,9 +231,11 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     if a.shape != b.shape:
         raise MapError(f"picture distance needs maps of one shape, got {a.shape} and {b.shape}")
     cap = float(sum(a.shape))
+    differ = _differ_box(a.states, b.states)
     total = 0.0
     for kind in (OCCUPIED, FREE):
-        total += _mean_distance(a.states, b.states, kind, cap) + _mean_distance(
-            b.states, a.states, kind, cap
+        n_a, n_b = _count(a.states, kind), _count(b.states, kind)
+        total += _mean_distance(a.states, b.states, kind, cap, (n_a, n_b), differ) + (
+            _mean_distance(b.states, a.states, kind, cap, (n_b, n_a), differ)
         )
     return total
