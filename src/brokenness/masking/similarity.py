@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapError
-from ..grid import FREE, OCCUPIED, OccupancyMap
+from ..grid import FREE, OCCUPIED, OccupancyMap, count_state
 
 __all__ = ["picture_distance"]
 
@@ -21,10 +21,7 @@ _LEVEL = 254
 
 def _count(states: NDArray[np.int8], kind: int) -> int:
     """Cells of ``states`` equal to ``kind``, counted in bands of rows."""
-    return sum(
-        int(np.count_nonzero(states[r : r + _BAND_ROWS] == kind))
-        for r in range(0, states.shape[0], _BAND_ROWS)
-    )
+    return count_state(states, kind)
 
 
 def _level_pass(seeds_not: NDArray[np.uint8]) -> NDArray[np.uint8]:
