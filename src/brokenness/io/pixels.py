@@ -119,13 +119,20 @@ def _from_pillow(img: Image.Image, name: str) -> Pixels:
 
 def _read_pillow(data: bytes, name: str) -> Pixels:
     try:
-        with Image.open(io.BytesIO(data)) as img:
-            width, height = img.size
-            if width == 0 or height == 0:
-                raise MapSizeError(f"{name}: image has a zero side ({width}x{height})")
-            check_cells(height, width, f"{name}: image")
-            img.load()
-            return _from_pillow(img, name)
+        # Pillow warns of a possible "decompression bomb" above its own pixel count
+        # (Image.MAX_IMAGE_PIXELS, about 89 million), below this package's limit; the limit
+        # that governs is this package's (check_cells, from the header, before decoding), so
+        # Pillow's warning is silenced here, for this image only. Pillow's error (twice its
+        # count) still stands and is reported as a MapSizeError below.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as img:
+                width, height = img.size
+                if width == 0 or height == 0:
+                    raise MapSizeError(f"{name}: image has a zero side ({width}x{height})")
+                check_cells(height, width, f"{name}: image")
+                img.load()
+                return _from_pillow(img, name)
     except Image.DecompressionBombError as exc:
         raise MapSizeError(f"{name}: image refused as too large ({one_line(exc)})") from None
     except UnidentifiedImageError:
