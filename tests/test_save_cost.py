@@ -20,10 +20,10 @@ import pytest
 from PIL import Image
 from test_report_fixtures import broken_rooms
 
-from brokenness import OccupancyMap, RigidTransform, picture_distance
+from brokenness import OccupancyMap, RigidTransform, load_map, picture_distance
 from brokenness.errors import MapError, MapSizeError
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN, count_state
-from brokenness.io.pixels import read_pixels
+from brokenness.io.pixels import _lookup, _lut, read_pixels
 from brokenness.measure.result import NOT_OCCUPIED, BrokennessResult, Partition
 from brokenness.report import load_results, save_results
 from brokenness.report.raster import _background, _cells, _View, overlay_raster, palette_rgb
@@ -324,3 +324,26 @@ def test_images_over_our_cell_limit_are_still_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 500)  # Pillow's error: twice its count
     with pytest.raises(MapSizeError):
         read_pixels(_png(tmp_path / "n.png"))
+
+
+# -- loading -------------------------------------------------------------------------------
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (40, 57)])
+def test_lookup_is_numpys_indexing(shape):
+    rng = np.random.default_rng(shape[0] * 100 + shape[1])
+    for mode, negate in (("trinary", False), ("raw", False), ("scale", True)):
+        lut = _lut(1, 255, mode, negate, 0.65, 0.196)
+        sums = rng.integers(0, 256, shape).astype(np.uint8)
+        got = _lookup(lut, sums)
+        assert got.dtype == np.int8 and got.flags.writeable
+        np.testing.assert_array_equal(got, lut[sums])
+    small = _lut(1, 100, "trinary", False, 0.65, 0.196)  # a PGM of maxval 100: numpy's way
+    sums = rng.integers(0, 101, shape).astype(np.uint8)
+    np.testing.assert_array_equal(_lookup(small, sums), small[sums])
+
+
+def test_loaded_map_is_taken_without_a_copy(tmp_path):
+    states = np.array([[0, 254], [205, 0]], np.uint8)
+    Image.fromarray(states).save(tmp_path / "m.png")
+    m = load_map(tmp_path / "m.png")
+    np.testing.assert_array_equal(m.states, [[OCCUPIED, FREE], [UNKNOWN, OCCUPIED]])
+    assert not m.states.flags.writeable
