@@ -16,8 +16,9 @@ with :meth:`float.hex`, so two files are equal only if the results are equal bit
 Timings (``seconds``, ``step_seconds``) are left out.
 
 Run: ``python benchmarks/check_identical.py --out new.json [--against base.json]``
-(``--quick`` leaves out the 2000² maps and the realistic cases). With ``--against`` it lists
-every field that differs and exits with status 1 if any does.
+(``--quick`` leaves out the 2000² maps and the realistic cases; ``--stats`` adds the figures
+of the result file's ``stats.json``, Psi among them, and the SHA-256 of its bytes). With
+``--against`` it lists every field that differs and exits with status 1 if any does.
 """
 
 from __future__ import annotations
@@ -95,6 +96,18 @@ def record(result: BrokennessResult) -> dict[str, Any]:
             "partitions": parts,
         }
     )
+
+
+def stats_record(result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap) -> dict[str, Any]:
+    """What a result file adds to the result: every figure of its ``stats.json`` (Psi of
+    the map and of the repaired map...) and the SHA-256 of its exact bytes."""
+    from brokenness.report.results import _dumps, build_stats
+
+    stats = build_stats(result, m, ref)
+    return {
+        "stats_json": hashlib.sha256(_dumps(stats)).hexdigest(),
+        "stats": _plain({k: stats[k] for k in ("psi_map", "psi_repaired", "map", "reference")}),
+    }
 
 
 def _realistic_root() -> Path | None:
@@ -185,6 +198,11 @@ def main() -> None:
     parser.add_argument("--against", help="an earlier JSON to compare with")
     parser.add_argument("--quick", action="store_true", help="the small cases only")
     parser.add_argument("--only", help="run the cases whose name contains this")
+    parser.add_argument(
+        "--stats",
+        action="store_true",
+        help="also the figures of the result file's stats.json (Psi...) and its SHA-256",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")
     results: dict[str, Any] = {}
@@ -194,7 +212,10 @@ def main() -> None:
             continue
         m, ref = build()
         t0 = time.perf_counter()
-        results[name] = record(compute_brokenness(m, ref))
+        result = compute_brokenness(m, ref)
+        results[name] = record(result)
+        if args.stats:
+            results[name].update(stats_record(result, m, ref))
         print(
             f"{name}: degree {results[name]['degree']} ({time.perf_counter() - t0:.2f} s)",
             flush=True,

@@ -27,6 +27,7 @@ __all__ = [
     "OCCUPIED",
     "UNKNOWN",
     "OccupancyMap",
+    "count_state",
 ]
 
 #: Cell state of an occupied cell.
@@ -40,6 +41,30 @@ UNKNOWN: int = -1
 # 500 m x 500 m at 5 cm); the limit in force is brokenness.limits.max_cells(), which the
 # environment variable BROKENNESS_MAX_CELLS overrides. Larger inputs raise MapSizeError
 # before anything is decoded.
+
+
+#: Rows of a grid compared at once by :func:`count_state`: a band's comparison stays in the
+#: processor's cache, where one of the whole grid would be a fresh temporary of its size.
+_COUNT_ROWS = 512
+
+
+def count_state(states: NDArray[np.int8], state: int) -> int:
+    """Number of cells of ``states`` equal to ``state``, counted in bands of rows.
+
+    Parameters
+    ----------
+    states : ndarray of int8, 2D
+    state : int
+        :data:`OCCUPIED`, :data:`FREE` or :data:`UNKNOWN`.
+
+    Returns
+    -------
+    int
+    """
+    return sum(
+        int(np.count_nonzero(states[r : r + _COUNT_ROWS] == state))
+        for r in range(0, states.shape[0], _COUNT_ROWS)
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,8 +109,10 @@ class OccupancyMap:
             if not np.issubdtype(states.dtype, np.integer):
                 raise MapError(f"map states must be integers -1/0/1, got dtype {states.dtype}")
             states = states.astype(np.int8)
-        bad = (states != OCCUPIED) & (states != FREE) & (states != UNKNOWN)
-        if bad.any():
+        # the three states are the consecutive integers -1, 0, 1: an int8 grid holds nothing
+        # else exactly when its smallest and largest values are within them (two reductions,
+        # no temporary grid)
+        if int(states.min()) < UNKNOWN or int(states.max()) > OCCUPIED:
             raise MapError("map states must be -1 (unknown), 0 (free) or 1 (occupied)")
         if states is self.states and states.flags.writeable:
             states = states.copy()
@@ -177,7 +204,7 @@ class OccupancyMap:
     @property
     def n_occupied(self) -> int:
         """Number of occupied cells."""
-        return int(np.count_nonzero(self.states == OCCUPIED))
+        return count_state(self.states, OCCUPIED)
 
     @property
     def has_geometry(self) -> bool:

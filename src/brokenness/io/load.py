@@ -214,6 +214,7 @@ def load_map(
             free_thresh=meta.free_thresh,
             name=name,
         )
+        states.setflags(write=False)  # a fresh grid nobody else holds: taken without a copy
         return OccupancyMap(
             states,
             resolution if resolution is not None else meta.resolution,
@@ -230,6 +231,7 @@ def load_map(
             free_thresh=DEFAULT_FREE_THRESH,
             name=name,
         )
+        states.setflags(write=False)  # a fresh grid nobody else holds: taken without a copy
         return OccupancyMap(states, resolution, origin, source=name)
     raise MapFormatError(
         f"{name}: unsupported map file extension {p.suffix or '(none)'!r} "

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapError
-from ..grid import FREE, OCCUPIED, OccupancyMap
+from ..grid import FREE, OCCUPIED, OccupancyMap, count_state
 
 __all__ = ["picture_distance"]
 
@@ -19,10 +21,7 @@ _LEVEL = 254
 
 def _count(states: NDArray[np.int8], kind: int) -> int:
     """Cells of ``states`` equal to ``kind``, counted in bands of rows."""
-    return sum(
-        int(np.count_nonzero(states[r : r + _BAND_ROWS] == kind))
-        for r in range(0, states.shape[0], _BAND_ROWS)
-    )
+    return count_state(states, kind)
 
 
 def _level_pass(seeds_not: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -77,20 +76,107 @@ def _distance_sum(
         level = _level_pass(level)
 
 
+#: A box of cells ``(r0, r1, c0, c1)``: rows ``r0 .. r1 - 1``, columns ``c0 .. c1 - 1``.
+_Box = tuple[int, int, int, int]
+
+
+def _union(a: _Box | None, b: _Box | None) -> _Box | None:
+    """The smallest box holding both boxes (``None`` is the empty box)."""
+    if a is None or b is None:
+        return a if b is None else b
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
+def _mask_box(masks: Iterator[tuple[int, NDArray[np.bool_]]]) -> _Box | None:
+    """Bounding box of the True cells of a mask given band by band as ``(first row, band)``,
+    or ``None`` when there is none."""
+    box: _Box | None = None
+    for r, band in masks:
+        x, y, w, h = cv2.boundingRect(np.ascontiguousarray(band).view(np.uint8))
+        if w:
+            box = _union(box, (r + y, r + y + h, x, x + w))
+    return box
+
+
+def _row_bands(rows: int) -> range:
+    return range(0, rows, _BAND_ROWS)
+
+
+def _differ_box(a: NDArray[np.int8], b: NDArray[np.int8]) -> _Box | None:
+    """Bounding box of the cells whose states differ in ``a`` and ``b`` (``None``: none)."""
+    return _mask_box(
+        (r, a[r : r + _BAND_ROWS] != b[r : r + _BAND_ROWS]) for r in _row_bands(a.shape[0])
+    )
+
+
+def _kind_box(states: NDArray[np.int8], kind: int) -> _Box | None:
+    """Bounding box of the ``kind`` cells of ``states`` (``None`` when there is none)."""
+    return _mask_box((r, states[r : r + _BAND_ROWS] == kind) for r in _row_bands(states.shape[0]))
+
+
+def _off_box(
+    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, differ: _Box
+) -> _Box | None:
+    """Bounding box of the cells of ``kind`` in ``of_states`` and not in ``to_states``: all
+    within ``differ``, the box of the cells where the two maps differ."""
+    r0, r1, c0, c1 = differ
+    of, to = of_states[r0:r1, c0:c1], to_states[r0:r1, c0:c1]
+    box = _mask_box(
+        (r, (of[r : r + _BAND_ROWS] == kind) & (to[r : r + _BAND_ROWS] != kind))
+        for r in _row_bands(r1 - r0)
+    )
+    return None if box is None else (box[0] + r0, box[1] + r0, box[2] + c0, box[3] + c0)
+
+
+def _needed_box(
+    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, differ: _Box | None
+) -> _Box | None:
+    """The part of the grid that the distances from the ``kind`` cells of ``of_states`` to the
+    nearest ``kind`` cell of ``to_states`` need, or ``None`` when every one of them is 0.
+
+    Only the cells of ``kind`` in ``of_states`` and not in ``to_states`` are at a distance
+    other than 0 (and they lie where the maps differ, in ``differ``). The box of those and
+    of all the ``kind`` cells of ``to_states`` holds every ``kind`` cell of ``of_states``
+    (each is one or the other) and every target, so every nearest target is inside it; and
+    a shortest Manhattan lattice path between two cells of a box stays in the box (it can go
+    monotonically). The distances computed in the box are therefore those of the whole
+    grid, cell for cell.
+    """
+    if differ is None:
+        return None
+    off = _off_box(of_states, to_states, kind, differ)
+    if off is None:
+        return None
+    return _union(off, _kind_box(to_states, kind))
+
+
 def _mean_distance(
-    of_states: NDArray[np.int8], to_states: NDArray[np.int8], kind: int, cap: float
+    of_states: NDArray[np.int8],
+    to_states: NDArray[np.int8],
+    kind: int,
+    cap: float,
+    counts: tuple[int, int],
+    differ: _Box | None,
 ) -> float:
     """Mean Manhattan distance from each ``kind`` cell of ``of_states`` to the nearest
     ``kind`` cell of ``to_states`` (``cap`` a cell when ``to_states`` has none).
 
-    Distances are whole numbers, so their sum is exact in integers (and equal to the float64
-    sum of the float32 distances, which is exact below 2**53)."""
-    count = _count(of_states, kind)
+    ``counts`` are the numbers of ``kind`` cells of the two, ``differ`` the box of the cells
+    where they differ. Distances are whole numbers, so their sum is exact in integers (and
+    equal to the float64 sum of the float32 distances, which is exact below 2**53). The
+    distance maps cover only :func:`_needed_box` (none at all when the two maps have the
+    same ``kind`` cells), which gives the same distances as the whole grid."""
+    count, targets = counts
     if count == 0:
         return 0.0
-    if _count(to_states, kind) == 0:
+    if targets == 0:
         return float(np.float64(cap) * count) / count
-    return float(_distance_sum(of_states, kind, to_states, kind)) / count
+    box = _needed_box(of_states, to_states, kind, differ)
+    if box is None:
+        return 0.0
+    r0, r1, c0, c1 = box
+    of_box, to_box = of_states[r0:r1, c0:c1], to_states[r0:r1, c0:c1]
+    return float(_distance_sum(of_box, kind, to_box, kind)) / count
 
 
 def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
@@ -105,7 +191,9 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     in one map to the nearest cell of the same kind in the other map, both ways. Unknown cells
     take no part. 0 means identical occupied and free sets; the value grows with noise,
     shifts and rotations. Distance maps make it linear in the number of cells; they are
-    one byte a cell (saturated passes, exact), and every sum is taken in bands of rows.
+    one byte a cell (saturated passes, exact), cover only the box of the cells that are
+    at a distance other than 0 and of their targets (nothing when both maps have the same
+    cells of a kind), and every sum is taken in bands of rows.
 
     Parameters
     ----------
@@ -140,9 +228,11 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     if a.shape != b.shape:
         raise MapError(f"picture distance needs maps of one shape, got {a.shape} and {b.shape}")
     cap = float(sum(a.shape))
+    differ = _differ_box(a.states, b.states)
     total = 0.0
     for kind in (OCCUPIED, FREE):
-        total += _mean_distance(a.states, b.states, kind, cap) + _mean_distance(
-            b.states, a.states, kind, cap
+        n_a, n_b = _count(a.states, kind), _count(b.states, kind)
+        total += _mean_distance(a.states, b.states, kind, cap, (n_a, n_b), differ) + (
+            _mean_distance(b.states, a.states, kind, cap, (n_b, n_a), differ)
         )
     return total

@@ -279,7 +279,13 @@ def _known_box(grid: OccupancyMap, margin: float = 0.03) -> tuple[int, int, int,
 
 
 def _background(grid: OccupancyMap, view: _View) -> NDArray[np.uint16]:
-    """Free (a block with any known cell) or unknown, pooled block by block."""
+    """Free (a block with any known cell) or unknown, pooled block by block.
+
+    A strip of ``k`` source rows per raster row is pooled over its rows first (the maximum
+    of ``k`` contiguous rows, an elementwise operation), then over the ``k`` columns of each
+    block of the ``k`` times smaller result: the same maximum as over each block at once,
+    at a fraction of the cost.
+    """
     k = view.k
     rows, cols = grid.shape
     out = np.zeros((view.h, view.w), np.uint16)
@@ -292,10 +298,14 @@ def _background(grid: OccupancyMap, view: _View) -> NDArray[np.uint16]:
         ca, cb = max(a, 0), min(b, rows)
         if ca >= cb or cx0 >= cx1:
             continue
-        block = np.full((b - a, x1 - x0), UNKNOWN, np.int8)
-        block[ca - a : cb - a, cx0 - x0 : cx1 - x0] = grid.states[ca:cb, cx0:cx1]
-        pooled = block.reshape(v1 - v0, k, view.w, k).max(axis=(1, 3))
-        out[v0:v1] = np.where(pooled > UNKNOWN, _C_FREE, _C_UNKNOWN)
+        known = np.zeros((b - a, x1 - x0), np.uint8)  # 1 on a known cell, 0 elsewhere
+        np.not_equal(
+            grid.states[ca:cb, cx0:cx1],
+            UNKNOWN,
+            out=known[ca - a : cb - a, cx0 - x0 : cx1 - x0].view(np.bool_),
+        )
+        pooled_rows = known.reshape(v1 - v0, k, x1 - x0).max(axis=1)
+        out[v0:v1] = pooled_rows.reshape(v1 - v0, view.w, k).max(axis=2)  # 1 free, 0 unknown
     return _enlarge(out, view.m)
 
 
@@ -316,13 +326,26 @@ def _paint(
     raster[v[order], u[order]] = codes[order]
 
 
+def _cells(mask: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(rows, cols) of the True cells of a 2D mask, row by row (as :func:`numpy.nonzero`).
+
+    OpenCV's scan of a mask of bytes is several times faster than numpy's on the large,
+    sparse masks of a map's strips; the cells and their order are the same."""
+    found = cv2.findNonZero(np.ascontiguousarray(mask).view(np.uint8))
+    if found is None:
+        empty = np.zeros(0, np.intp)
+        return empty, empty.copy()
+    xy = found.reshape(-1, 2)
+    return xy[:, 1].astype(np.intp), xy[:, 0].astype(np.intp)
+
+
 def _occupied_points(
     grid: OccupancyMap,
 ) -> list[tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.intp]]]:
     """Per strip: (points, rows, cols) of the occupied cells."""
     out = []
     for a, b in _strips(grid.shape[0]):
-        rr, cc = np.nonzero(grid.states[a:b] == OCCUPIED)
+        rr, cc = _cells(grid.states[a:b] == OCCUPIED)
         rr = rr + a
         out.append((np.column_stack([cc, rr]).astype(np.float64), rr, cc))
     return out
@@ -368,7 +391,7 @@ def _labelled_points(
     transforms = {p.index: p.transform for p in result.partitions}
     for a, b in _strips(grid.shape[0]):
         lab = labels[a:b]
-        rr, cc = np.nonzero((lab >= 0) | (lab == UNASSIGNED))
+        rr, cc = _cells((lab >= 0) | (lab == UNASSIGNED))
         if not len(rr):
             continue
         values = lab[rr, cc].astype(np.intp)

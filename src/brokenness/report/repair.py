@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import MapError
-from ..grid import FREE, OCCUPIED, OccupancyMap
+from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import picture_distance
 from ..measure.result import BrokennessResult
 from ..transform import RigidTransform
@@ -52,7 +52,12 @@ _ENCODE[np.uint8(OCCUPIED)] = _ENC_OCCUPIED
 _DECODE = (np.arange(256, dtype=np.uint8).view(np.int8) - np.int8(1)).view(np.uint8)
 
 
-def _warp(enc: NDArray[np.uint8], transform: RigidTransform, shape: tuple[int, int]) -> NDArray:
+def _warp(
+    enc: NDArray[np.uint8],
+    transform: RigidTransform,
+    shape: tuple[int, int],
+    border: int = _ENC_UNKNOWN,
+) -> NDArray:
     rows, cols = shape
     return cv2.warpAffine(
         enc,
@@ -60,7 +65,7 @@ def _warp(enc: NDArray[np.uint8], transform: RigidTransform, shape: tuple[int, i
         (cols, rows),
         flags=cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_CONSTANT,
-        borderValue=_ENC_UNKNOWN,
+        borderValue=border,
     )
 
 
@@ -89,8 +94,22 @@ def align_map(
     OccupancyMap
         Same shape and geometry as ``reference``; cells that no map cell lands on are unknown.
     """
-    enc = _warp(_encode(map.states), transform, reference.shape)
-    return OccupancyMap(_decode(enc), reference.resolution, reference.origin, map.source)
+    # nearest-neighbour warping only copies cells, so the states' own bytes are warped
+    # directly, with unknown's byte outside the map: the same cells as warping the encoded
+    # states (:func:`_encode`, a one-to-one relabelling of the three states) and decoding
+    unknown = int(np.int8(UNKNOWN).view(np.uint8))
+    states = np.ascontiguousarray(map.states).view(np.uint8)
+    moved = _warp(states, transform, reference.shape, border=unknown).view(np.int8)
+    return _owned_map(moved, reference, map.source)
+
+
+def _owned_map(
+    states: NDArray[np.int8], reference: OccupancyMap, source: str | None
+) -> OccupancyMap:
+    """A map in the reference's grid of a fresh grid nothing else refers to: made read-only,
+    it is taken as it is (a writeable grid would be copied)."""
+    states.setflags(write=False)
+    return OccupancyMap(states, reference.resolution, reference.origin, source)
 
 
 def partition_owners(labels: NDArray[np.integer]) -> NDArray[np.int16]:
@@ -161,7 +180,7 @@ def repair_map(
     for p in result.partitions:
         piece = np.where(owners == p.index, enc, np.uint8(_ENC_UNKNOWN))
         np.maximum(out, _warp(piece, p.transform, reference.shape), out=out)
-    return OccupancyMap(_decode(out), reference.resolution, reference.origin, map.source)
+    return _owned_map(_decode(out), reference, map.source)
 
 
 @dataclass(frozen=True, eq=False)

@@ -34,8 +34,11 @@ import json
 import math
 import os
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -263,11 +266,16 @@ def _compact(labels: NDArray[np.integer]) -> np.dtype[Any]:
 
 
 def _write_zip(
-    path: str | os.PathLike[str], members: Mapping[str, bytes | None], labels: NDArray
+    path: str | os.PathLike[str],
+    members: Mapping[str, bytes | None],
+    labels: NDArray,
+    last: Callable[[], Mapping[str, bytes]] | None = None,
 ) -> None:
     """Write the result zip atomically, streaming: ``labels.npy`` goes in after
     ``stats.json`` (where ``members`` has ``None``), converted to its compact dtype and
-    compressed a strip of rows at a time, never as a whole in memory."""
+    compressed a strip of rows at a time, never as a whole in memory. ``last``, when given,
+    is asked for the final members once the others are written (the overlay, drawn
+    meanwhile in another thread)."""
     dtype = _compact(labels)
     header = io.BytesIO()
     np.lib.format.write_array_header_1_0(
@@ -287,8 +295,19 @@ def _write_zip(
                     for a in range(0, labels.shape[0], _LABEL_ROWS):
                         strip = labels[a : a + _LABEL_ROWS]
                         out.write(np.ascontiguousarray(strip, dtype=dtype).tobytes())
+            for name, data in (last() if last is not None else {}).items():
+                zf.writestr(_member(name), data)
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def _threads_allowed() -> bool:
+    """True unless this process runs on one thread (a batch's or a timeline's worker, whose
+    processes are the parallelism: :mod:`brokenness._threads`, or a one-core machine):
+    OpenCV's thread count says which."""
+    import cv2
+
+    return bool(cv2.getNumThreads() > 1)
 
 
 # -- public API -------------------------------------------------------------------------------
@@ -347,6 +366,30 @@ def save_results(
     """
     if overlay not in OVERLAY_KINDS:
         raise ParameterError(f"overlay must be one of {', '.join(OVERLAY_KINDS)}, got {overlay!r}")
+    # The picture needs nothing of the rest, and the rest (Psi, the labels' compression) is
+    # mostly OpenCV, numpy and zlib, which let another thread run: the picture is drawn in
+    # a second thread meanwhile, and goes into the zip last, as it always did.
+    second_thread = overlay != "none" and _threads_allowed()
+    with ThreadPoolExecutor(max_workers=1) if second_thread else nullcontext() as pool:
+        if pool is not None:
+            drawn = pool.submit(_overlay_png, overlay, result, map, reference, dpi)
+            picture: Callable[[], bytes | None] = drawn.result
+        else:
+            picture = partial(_overlay_png, overlay, result, map, reference, dpi)
+        return _save(path, result, map, reference, info, repaired, overlay, picture)
+
+
+def _save(
+    path: str | os.PathLike[str],
+    result: BrokennessResult,
+    map: OccupancyMap,
+    reference: OccupancyMap,
+    info: Mapping[str, Any] | None,
+    repaired: Repair | None,
+    overlay: str,
+    picture: Callable[[], bytes | None],
+) -> ResultRecord:
+    """:func:`save_results` once the overlay is on its way (``picture`` gives its PNG)."""
     rep = repaired if repaired is not None else repair(result, map, reference)
     stats = build_stats(result, map, reference, rep)
     base: dict[str, Any] = {
@@ -367,15 +410,19 @@ def save_results(
     }
     info_dict = _jsonable(_merge(base, info or {}))
     labels = np.asarray(result.labels)
-    png = _overlay_png(overlay, result, map, reference, dpi)
     members: dict[str, bytes | None] = {
         "info.json": _dumps(info_dict),
         "stats.json": _dumps(stats),
         "labels.npy": None,  # streamed from ``labels``
     }
-    if png is not None:
-        members["overlay.png"] = png
-    _write_zip(path, members, labels)
+    png: bytes | None = None
+
+    def last() -> dict[str, bytes]:
+        nonlocal png
+        png = picture()
+        return {} if png is None else {"overlay.png": png}
+
+    _write_zip(path, members, labels, last)
     return ResultRecord(
         info_dict, stats, labels.astype(np.int16, copy=False), png or b"", Path(path)
     )
