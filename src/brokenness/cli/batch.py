@@ -94,7 +94,9 @@ def add_parser(subparsers: Any) -> None:
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_verbosity(p)
-    p.set_defaults(func=run)
+    # the pairs are evaluated by the runner, which turns huge pages off where it computes
+    # (in this process with --workers 1): this process need not load numpy
+    p.set_defaults(func=run, small_pages=False)
 
 
 def _compute_options(args: argparse.Namespace) -> dict[str, Any]:
