@@ -879,7 +879,7 @@ def run_batch(
     local_cluster: bool = False,
     options: PairOptions | Mapping[str, Any] | None = None,
     progress: bool = True,
-    console: Console | None = None,
+    console: Console | Callable[[], Console] | None = None,
     connect_timeout: float = 10.0,
     overlays: str | None = None,
 ) -> BatchSummary:
@@ -905,8 +905,9 @@ def run_batch(
         The manifest's own ``options`` come first, these override them.
     progress : bool
         Show a progress bar (rich) with rate and ETA on stderr.
-    console : rich.console.Console, optional
-        Where the progress bar goes.
+    console : rich.console.Console or callable, optional
+        Where the progress bar goes; or a function that makes it, called once the workers
+        are starting (so that rich loads while they start: the command line's).
 
     connect_timeout : float
         Seconds to wait for the Dask scheduler at ``scheduler``.
@@ -992,7 +993,7 @@ def _run_locked(
     scheduler: str | None,
     local_cluster: bool,
     progress: bool,
-    console: Console | None,
+    console: Console | Callable[[], Console] | None,
     connect_timeout: float,
 ) -> BatchSummary:
     rows: dict[str, RowResult] = {}
@@ -1024,6 +1025,8 @@ def _run_locked(
 
     from .progress import batch_progress
 
+    if callable(console):
+        console = console()
     with batch_progress(console, progress) as bar:
         task = bar.add_task("brokenness", total=len(todo), last="")
         if len(rows):
