@@ -27,6 +27,10 @@ counts alternating), then the fixed costs of a batch and of a pair: the interpre
 imports of a process, the fork server's first worker, a worker process from the warm fork
 server, and per pair loading, computing, repair and stats, the fast overlay, the figure,
 and the whole ``save_results``. ``--overlays fast|figure|none`` is passed to ``batch``.
+Between the two, the steady-state throughput: each round also runs a batch of 36 pairs (the
+12 three times, with a label that makes them distinct) with 1 and 2 workers; the slope
+(wall of 36 - wall of 12) / 24 is the time per pair without the start-up (the interpreter,
+the imports, the fork server), and its ratio the throughput of a long batch.
 
 Run: ``python benchmarks/bench_scale.py --quick`` (1.5-3 minutes: 1000² at degrees 0, 2,
 5, 8; 2000² and 4000² at degrees 2 and 5; the batch once) or without ``--quick`` (5-15
@@ -251,7 +255,9 @@ def growth(rows: list[dict]) -> None:
 
 def make_manifest(base: OccupancyMap, folder: Path) -> Path:
     """12 pairs: the Willow Garage map at its own size (608x566) as the reference, broken at
-    degrees 0-5 with turns of up to 20 and up to 10 degrees, on a map padded by 40 cells."""
+    degrees 0-5 with turns of up to 20 and up to 10 degrees, on a map padded by 40 cells.
+    Also writes ``manifest36.csv``: the same 12 pairs three times (a label ``copy`` 1-3 makes
+    36 distinct pairs), for the steady-state throughput."""
     ref = base
     save_map(ref, folder / "ref.yaml")
     rows = []
@@ -268,15 +274,24 @@ def make_manifest(base: OccupancyMap, folder: Path) -> Path:
         w = csv.DictWriter(f, fieldnames=["map", "reference", "expected_degree"])
         w.writeheader()
         w.writerows(rows)
+    with (folder / "manifest36.csv").open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["map", "reference", "expected_degree", "copy"])
+        w.writeheader()
+        w.writerows({**row, "copy": str(k)} for k in (1, 2, 3) for row in rows)
     return path
 
 
+def _command() -> list[str]:
+    """The ``brokenness`` command of this interpreter."""
+    exe = Path(sys.executable).with_name("brokenness")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "brokenness"]
+
+
 def run_batch(
-    manifest: Path, workers: int, out: Path, overlays: str = "fast"
+    manifest: Path, workers: int, out: Path, overlays: str = "fast", pairs: int = 12
 ) -> tuple[float, float, float, int]:
     shutil.rmtree(out, ignore_errors=True)
-    exe = Path(sys.executable).with_name("brokenness")
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "brokenness"]
+    cmd = _command()
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
     subprocess.run(
@@ -297,8 +312,8 @@ def run_batch(
     )
     wall = time.perf_counter() - t0
     n = len(list(out.glob("*.zip")))
-    if n != 12:
-        raise RuntimeError(f"batch wrote {n} result zips, not 12")
+    if n != pairs:
+        raise RuntimeError(f"batch wrote {n} result zips, not {pairs}")
     with (out / "summary.csv").open() as f:
         rows = list(csv.DictReader(f))
     seconds = float(np.mean([float(r["seconds"]) for r in rows]))
@@ -332,7 +347,48 @@ def batch(base: OccupancyMap, tmp: Path, rounds: int, overlays: str = "fast") ->
         f"\nthroughput with 2 workers / with 1 (medians): {one / two:.2f}x; per round "
         + ", ".join(f"{r:.2f}x" for r in ratios)
     )
+    steady_state(folder, tmp, rounds, overlays)
     fixed_costs(folder)
+
+
+def steady_state(folder: Path, tmp: Path, rounds: int, overlays: str = "fast") -> None:
+    """Throughput without the start-up: the slope between a batch of the 12 pairs and one
+    of 36 (the 12 three times), per worker count, each round running the four batches
+    (12 and 36 pairs, 1 and 2 workers) in an order that alternates."""
+    walls: dict[tuple[int, int], list[float]] = {(w, n): [] for w in (1, 2) for n in (12, 36)}
+    print(
+        "\nsteady state: seconds per pair beyond the start-up, (wall of 36 pairs - wall of 12) "
+        "/ 24\n\n| round | workers | wall 12 pairs | wall 36 pairs | s per pair (slope) "
+        "| pairs/s | load |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for k in range(rounds):
+        order = (1, 2) if k % 2 == 0 else (2, 1)
+        for w in order:
+            sizes = (12, 36) if k % 2 == 0 else (36, 12)
+            for n in sizes:
+                manifest = folder / ("manifest.csv" if n == 12 else "manifest36.csv")
+                wall, load, _, _ = run_batch(manifest, w, tmp / f"out{w}_{n}", overlays, n)
+                walls[w, n].append(wall)
+            slope = (walls[w, 36][-1] - walls[w, 12][-1]) / 24
+            print(
+                f"| {k + 1} | {w} | {walls[w, 12][-1]:.2f} | {walls[w, 36][-1]:.2f} "
+                f"| {slope:.3f} | {1 / slope:.1f} | {load:.1f} |",
+                flush=True,
+            )
+    slopes = {
+        w: [(b - a) / 24 for a, b in zip(walls[w, 12], walls[w, 36], strict=True)] for w in (1, 2)
+    }
+    ratios = [a / b for a, b in zip(slopes[1], slopes[2], strict=True)]
+    one, two = np.median(slopes[1]), np.median(slopes[2])
+    start = {w: np.median(walls[w, 12]) - 12 * np.median(slopes[w]) for w in (1, 2)}
+    print(
+        f"\nsteady-state throughput with 2 workers / with 1 (medians of the slopes): "
+        f"{one / two:.2f}x; per round "
+        + ", ".join(f"{r:.2f}x" for r in ratios)
+        + f"; start-up (wall of 12 pairs less 12 slopes): {start[1]:.2f} s with 1 worker, "
+        f"{start[2]:.2f} s with 2"
+    )
 
 
 def _trivial_worker(conn: object, sent: float) -> None:
@@ -352,12 +408,19 @@ def fixed_costs(folder: Path) -> None:
     from brokenness.report.repair import repair
     from brokenness.report.results import build_stats, save_results
 
-    code = "import brokenness.batch.runner, brokenness.measure, brokenness.report.fast_overlay"
-    imports = []
+    # what a process evaluating pairs imports (``workers=1``, the fork server), and the
+    # command line's own start (the batch process with workers, which imports no pipeline)
+    modules = (*_PRELOAD, "brokenness.measure", "brokenness.report.fast_overlay")
+    code = f"import importlib\nfor m in {modules!r}: importlib.import_module(m)"
+    cli = [*_command(), "batch", "--help"]
+    imports, starts_cli = [], []
     for _ in range(3):
         t0 = time.perf_counter()
         subprocess.run([sys.executable, "-c", code], check=True)
         imports.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        subprocess.run(cli, check=True, stdout=subprocess.DEVNULL)
+        starts_cli.append(time.perf_counter() - t0)
     ctx = forkserver_context((*_PRELOAD, "brokenness.report.fast_overlay"))
     starts = []
     for _ in range(13):
@@ -409,8 +472,9 @@ def fixed_costs(folder: Path) -> None:
         "(the ceiling of the batch's ratio)"
     )
     print(
-        "\nfixed costs (medians): interpreter and imports of a batch process "
-        f"{np.median(imports):.2f} s (load {os.getloadavg()[0]:.1f}); the fork server's "
+        "\nfixed costs (medians): interpreter and imports of a process evaluating pairs "
+        f"{np.median(imports):.2f} s (load {os.getloadavg()[0]:.1f}); `brokenness batch "
+        f"--help` {np.median(starts_cli):.2f} s; the fork server's "
         f"first worker (its imports) {starts[0]:.2f} s; a worker process from the warm fork "
         f"server {1000 * np.median(starts[1:]):.0f} ms"
     )

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from brokenness.batch.manifest import read_manifest
-from brokenness.batch.runner import PairOptions, _RateColumn, evaluate_pair
+from brokenness.batch.progress import _RateColumn
+from brokenness.batch.runner import PairOptions, evaluate_pair
 from brokenness.cli import main as cli_main
 from brokenness.cli.main import EXIT_BROKEN_PIPE, build_parser, main
 

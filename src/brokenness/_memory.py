@@ -15,11 +15,6 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-try:  # numpy >= 2
-    from numpy._core import multiarray
-except ImportError:  # pragma: no cover - numpy 1.26
-    from numpy.core import multiarray  # type: ignore[no-redef]
-
 __all__ = ["small_pages"]
 
 
@@ -29,8 +24,14 @@ def small_pages() -> Iterator[None]:
 
     The setting is numpy's, for the whole process; it is restored on leaving the block (a
     numpy without it leaves everything as it is). Another thread allocating meanwhile gets
-    ordinary pages too, which changes its speed, never its results.
+    ordinary pages too, which changes its speed, never its results. numpy is imported here,
+    not with this module.
     """
+    try:  # numpy >= 2
+        from numpy._core import multiarray
+    except ImportError:  # pragma: no cover - numpy 1.26
+        from numpy.core import multiarray  # type: ignore[no-redef]
+
     setter = getattr(multiarray, "_set_madvise_hugepage", None)
     if setter is None:
         yield

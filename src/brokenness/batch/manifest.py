@@ -38,10 +38,22 @@ from typing import Any
 from ..errors import BrokennessError
 from ..limits import MAX_MANIFEST_BYTES
 
-__all__ = ["COMPUTE_LABELS", "Manifest", "ManifestError", "Pair", "pairs_of", "read_manifest"]
+__all__ = [
+    "COMPUTE_LABELS",
+    "OVERLAY_KINDS",
+    "Manifest",
+    "ManifestError",
+    "Pair",
+    "pairs_of",
+    "read_manifest",
+]
 
 #: Label columns that are also passed to :func:`brokenness.compute_brokenness`.
 COMPUTE_LABELS: tuple[str, ...] = ("method", "seed")
+#: The overlay pictures a batch can put in its result zips (``overlays``), as
+#: :data:`brokenness.report.results.OVERLAY_KINDS` (named here so that reading a manifest,
+#: and checking a batch's options, never loads the pipeline).
+OVERLAY_KINDS: tuple[str, ...] = ("figure", "fast", "none")
 _PATH_COLUMNS = ("map", "reference")
 
 
@@ -263,8 +275,6 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | 
 
 
 def _overlays(value: Any, path: Path) -> str:
-    from ..report.results import OVERLAY_KINDS
-
     if not isinstance(value, str) or value not in OVERLAY_KINDS:
         raise ManifestError(
             f"{path}: overlays must be one of {', '.join(OVERLAY_KINDS)}, got {value!r}"

@@ -27,25 +27,16 @@ import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    ProgressColumn,
-    Task,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.table import Column
-from rich.text import Text
-
+from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError, NothingFoundWarning, ParameterError
-from ..report.results import ResultFileError, ResultRecord, atomic_write, load_results
-from .manifest import Manifest, Pair, pairs_of
+from .manifest import OVERLAY_KINDS, Manifest, Pair, pairs_of
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from ..report.results import ResultRecord
 
 __all__ = [
     "BatchLockedError",
@@ -351,47 +342,16 @@ def record_error(out_dir: Path, pair: Pair, message: str) -> None:
         pass
 
 
-# -- progress ---------------------------------------------------------------------------------
-class _RateColumn(ProgressColumn):
-    """Pairs per second (or seconds per pair when slower than one a second)."""
-
-    def render(self, task: Task) -> Text:
-        # over the whole run: rich's windowed speed jumps when two workers finish together
-        elapsed = task.finished_time if task.finished else task.elapsed
-        speed = task.completed / elapsed if task.completed and elapsed else None
-        if not speed:
-            return Text("-- pairs/s", style="progress.data.speed")
-        if speed >= 1:
-            return Text(f"{speed:.2f} pairs/s", style="progress.data.speed")
-        return Text(f"{1.0 / speed:.1f} s/pair", style="progress.data.speed")
-
-
-def _progress(console: Console | None, enabled: bool) -> Progress:
-    return Progress(
-        TextColumn("[progress.description]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        _RateColumn(),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        TextColumn(
-            "{task.fields[last]}",
-            table_column=Column(no_wrap=True, overflow="ellipsis", min_width=10),
-        ),
-        console=console or Console(stderr=True),
-        disable=not enabled,
-        transient=False,
-    )
-
-
 # -- executors --------------------------------------------------------------------------------
 Submit = Callable[[Sequence[Pair], Callable[[RowResult], None]], None]
 
 
 def _run_inline(pairs: Sequence[Pair], out: Path, options: PairOptions, done: Callable) -> None:
-    for pair in pairs:
-        done(evaluate_pair(pair, out, options))
+    from .._memory import small_pages
+
+    with small_pages():  # this process computes: no huge pages (brokenness._memory)
+        for pair in pairs:
+            done(evaluate_pair(pair, out, options))
 
 
 # -- local worker processes -------------------------------------------------------------------
@@ -402,8 +362,24 @@ WORKER_MEMORY_ENV = "BROKENNESS_WORKER_MEMORY"
 #: Seconds between two checks of a worker that its batch process is still alive.
 PARENT_CHECK_SECONDS = 0.5
 #: Modules the fork server imports once, so that every worker starts warm (and the overlay
-#: module of the batch's kind, :func:`_preload`).
-_PRELOAD = ("brokenness.batch.runner", "brokenness.measure", "brokenness.report.results")
+#: module of the batch's kind, :func:`_preload`): every module :func:`evaluate_pair` uses
+#: (the packages of :mod:`brokenness` load their modules on first use), and the image
+#: plugins Pillow loads on its first read or write of a file.
+_PRELOAD = (
+    "brokenness.batch.runner",
+    "brokenness.io.load",
+    "brokenness.io.pairing",
+    "brokenness.measure.recursion",
+    "brokenness.measure.mirror",
+    "brokenness.registration.api",
+    "brokenness.registration.ifmi",
+    "brokenness.report.results",
+    "PIL.BmpImagePlugin",
+    "PIL.GifImagePlugin",
+    "PIL.JpegImagePlugin",
+    "PIL.PngImagePlugin",
+    "PIL.PpmImagePlugin",
+)
 
 
 def _preload(options: PairOptions) -> tuple[str, ...]:
@@ -807,6 +783,8 @@ def _previous(pair: Pair, out: Path, status: str = STATUS_SKIPPED) -> RowResult 
     path = out / pair.result_name
     if not path.is_file():
         return None
+    from ..report.results import ResultFileError, load_results
+
     try:
         record = load_results(path)
         return RowResult.from_record(pair, record, status)
@@ -888,8 +866,6 @@ def check_options(options: Mapping[str, Any]) -> None:
 
 
 def _check_overlays(kind: str) -> None:
-    from ..report.results import OVERLAY_KINDS
-
     if kind not in OVERLAY_KINDS:
         raise ParameterError(f"overlays must be one of {', '.join(OVERLAY_KINDS)}, got {kind!r}")
 
@@ -903,7 +879,7 @@ def run_batch(
     local_cluster: bool = False,
     options: PairOptions | Mapping[str, Any] | None = None,
     progress: bool = True,
-    console: Console | None = None,
+    console: Console | Callable[[], Console] | None = None,
     connect_timeout: float = 10.0,
     overlays: str | None = None,
 ) -> BatchSummary:
@@ -929,8 +905,9 @@ def run_batch(
         The manifest's own ``options`` come first, these override them.
     progress : bool
         Show a progress bar (rich) with rate and ETA on stderr.
-    console : rich.console.Console, optional
-        Where the progress bar goes.
+    console : rich.console.Console or callable, optional
+        Where the progress bar goes; or a function that makes it, called once the workers
+        are starting (so that rich loads while they start: the command line's).
 
     connect_timeout : float
         Seconds to wait for the Dask scheduler at ``scheduler``.
@@ -1016,7 +993,7 @@ def _run_locked(
     scheduler: str | None,
     local_cluster: bool,
     progress: bool,
-    console: Console | None,
+    console: Console | Callable[[], Console] | None,
     connect_timeout: float,
 ) -> BatchSummary:
     rows: dict[str, RowResult] = {}
@@ -1046,7 +1023,11 @@ def _run_locked(
         csv_path, md_path = _write_summary(out, ordered)
         return BatchSummary(ordered, csv_path, md_path)
 
-    with _progress(console, progress) as bar:
+    from .progress import batch_progress
+
+    if callable(console):
+        console = console()
+    with batch_progress(console, progress) as bar:
         task = bar.add_task("brokenness", total=len(todo), last="")
         if len(rows):
             n = len(rows)

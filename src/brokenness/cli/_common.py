@@ -7,11 +7,14 @@ import os
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .._lazy import lazy_exports
 from ..errors import ParameterError
-from ..grid import OccupancyMap
-from ..io.pairing import geometry_warning
+
+if TYPE_CHECKING:
+    from ..grid import OccupancyMap
+    from ..io.pairing import geometry_warning
 
 __all__ = [
     "INPUTS_HELP",
@@ -23,6 +26,9 @@ __all__ = [
     "parse_origin",
     "plural",
 ]
+
+# numpy only when a subcommand loads maps (``brokenness batch`` itself never does)
+__getattr__, __dir__ = lazy_exports(__name__, {"geometry_warning": "brokenness.io.pairing"})
 
 #: The input formats, for help texts.
 INPUTS_HELP = (
@@ -135,6 +141,7 @@ def load_pair(
     knows its resolution (:func:`geometry_warning`).
     """
     from ..io import load_map
+    from ..io.pairing import geometry_warning
 
     paths = (getattr(args, first), getattr(args, second))
     row_order = getattr(args, "row_order", None)

@@ -94,7 +94,9 @@ def add_parser(subparsers: Any) -> None:
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_verbosity(p)
-    p.set_defaults(func=run)
+    # the pairs are evaluated by the runner, which turns huge pages off where it computes
+    # (in this process with --workers 1): this process need not load numpy
+    p.set_defaults(func=run, small_pages=False)
 
 
 def _compute_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -113,8 +115,6 @@ def _terminated(signum: int, frame: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the batch and print where the results are."""
-    from rich.markup import escape
-
     from ..batch import read_manifest, run_batch
     from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_NOT_MEASURED, STATUS_SKIPPED
     from ..limits import check_threshold
@@ -124,7 +124,6 @@ def run(args: argparse.Namespace) -> int:
     if args.threshold is not None:
         check_threshold(args.threshold)
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work
-    err = console(stderr=True)
     previous = signal.signal(signal.SIGTERM, _terminated)  # stop cleanly, as on Ctrl-C
     try:
         summary = run_batch(
@@ -135,11 +134,13 @@ def run(args: argparse.Namespace) -> int:
             local_cluster=args.local_cluster,
             options=_compute_options(args),
             progress=not (args.no_progress or args.quiet),
-            console=err,
+            console=lambda: console(stderr=True),  # rich loads while the workers start
             overlays=args.overlays,
         )
     finally:
         signal.signal(signal.SIGTERM, previous)
+    from rich.markup import escape
+
     done, skipped = summary.count(STATUS_DONE), summary.count(STATUS_SKIPPED)
     not_measured = summary.count(STATUS_NOT_MEASURED)
     failed = [r for r in summary.rows if r.status == STATUS_ERROR]

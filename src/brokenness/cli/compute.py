@@ -10,14 +10,16 @@ import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import NothingFoundWarning
-from ..grid import OccupancyMap
-from ..measure import BrokennessResult, compute_brokenness
 from ..registration.methods import METHODS
 from ._common import INPUTS_HELP, add_map_options, add_verbosity, console, load_pair, plural
 from .main import EXIT_NOT_MEASURED, EXIT_OK
+
+if TYPE_CHECKING:
+    from ..grid import OccupancyMap
+    from ..measure import BrokennessResult
 
 #: A degree from which ``compute`` checks whether the map fits better mirrored.
 MIRROR_CHECK_DEGREE = 3  # as the batch (brokenness.batch.runner)
@@ -142,6 +144,7 @@ def run(args: argparse.Namespace) -> int:
     """Load the maps, compute, and write what was asked for."""
     from ..errors import ParameterError
     from ..limits import check_measurable, check_threshold
+    from ..measure import compute_brokenness
     from ._outputs import check_seed
 
     check_outputs(args)

@@ -11,6 +11,7 @@ when the reader of a pipe went away (``brokenness compare ... | head``), quietly
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -89,7 +90,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    with warnings.catch_warnings(), small_pages():  # the saving's grids too (brokenness._memory)
+    # no huge pages for the computation, the saving's grids too (brokenness._memory); a
+    # subcommand that evaluates elsewhere (batch: its workers) says where itself
+    pages = small_pages() if getattr(args, "small_pages", True) else contextlib.nullcontext()
+    with warnings.catch_warnings(), pages:
         warnings.showwarning = _show_warning
         return _run(args)
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
-from .base import Registrar
+
+if TYPE_CHECKING:
+    from .base import Registrar
 
 __all__ = ["METHODS", "make_registrar"]
 
