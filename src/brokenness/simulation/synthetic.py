@@ -104,15 +104,15 @@ def simulate_broken_map(
     (2, True)
     """
     options = BumpOptions(
-        seed,
-        degree,
-        bumps,
-        bump_probability,
-        bump_radius,
-        max_rotation,
-        min_rotation,
-        max_attempts,
-        HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
+        seed=seed,
+        degree=degree,
+        bumps=bumps,
+        bump_probability=bump_probability,
+        bump_radius=bump_radius,
+        max_rotation=max_rotation,
+        min_rotation=min_rotation,
+        max_attempts=max_attempts,
+        rule=HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
     )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
