@@ -153,7 +153,11 @@ def sweep_rotation(
     n = int(round(half_range_deg / step_deg))
     deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
     moved = transform.apply(points)
-    fan = np.concatenate([moved[None], _turned(moved, pivot, deltas)])
+    # the fan in the float32 of the lookup, each point rounded once from float64 as the
+    # lookup would round it (no float64 copy of the fan)
+    fan = np.empty((len(deltas) + 1, moved.shape[0], 2), dtype=np.float32)
+    fan[0] = moved
+    _turned(moved, pivot, deltas, out=fan[1:])
     k = int(np.argmax(_soft_scores(distance_map, fan, threshold)))
     # the first of equal scores: no turn wins ties
     return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
@@ -163,10 +167,10 @@ def _turned(
     moved: NDArray[np.float64],
     pivot: NDArray[np.float64],
     angles: list[float],
-    out: NDArray[np.float64] | None = None,
-) -> NDArray[np.float64]:
+    out: NDArray[np.floating] | None = None,
+) -> NDArray[np.floating]:
     """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
-    (written to ``out`` if given)."""
+    (written to ``out`` if given: computed in float64, then rounded to ``out``'s type)."""
     a = np.asarray(angles, dtype=np.float64)[:, None]
     c, s = np.cos(a), np.sin(a)
     dx = moved[:, 0] - pivot[0]
@@ -239,7 +243,9 @@ def polish_transform(
     best_score = soft_agreement(distance_map, moved, threshold)
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
-    moves = np.empty((6, moved.shape[0], 2))
+    # the moves in the float32 of the lookup: each coordinate computed in float64 and
+    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy)
+    moves = np.empty((6, moved.shape[0], 2), dtype=np.float32)
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
         # and y), scored together; the best one is taken if it improves, else the steps
@@ -253,11 +259,13 @@ def polish_transform(
             (0.0, 0.0, -shift_step),
         )
         _turned(moved, pivot, [rot_step, -rot_step], out=moves[:2])
-        moves[2:] = moved  # the four shifts, each along its own axis
-        moves[2, :, 0] += shift_step
-        moves[3, :, 0] -= shift_step
-        moves[4, :, 1] += shift_step
-        moves[5, :, 1] -= shift_step
+        # the four shifts, each along its own axis (float64 sums, rounded into the moves)
+        moves[2:4, :, 1] = moved[:, 1]
+        moves[4:6, :, 0] = moved[:, 0]
+        np.add(moved[:, 0], shift_step, out=moves[2, :, 0])
+        np.subtract(moved[:, 0], shift_step, out=moves[3, :, 0])
+        np.add(moved[:, 1], shift_step, out=moves[4, :, 1])
+        np.subtract(moved[:, 1], shift_step, out=moves[5, :, 1])
         scores = _soft_scores(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
