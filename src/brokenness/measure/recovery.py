@@ -222,9 +222,11 @@ def _share(
     """At the cells ``at``, the share of the occupied cells around that agree under
     ``transform`` (``around``: how many occupied cells there are around each cell)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    near = _inside(rows, cols, _box(rows, cols, at, shape, radius))  # only those can count
+    ar, ac = rows[at], cols[at]
+    box = _box(ar, ac, shape, radius)
+    near = _inside(rows, cols, box)  # only those can count
     near[near] = index.occupied_agreement(transform.apply(points[near]), threshold)
-    return _window_counts(rows, cols, near, at, shape, radius) / around[at]
+    return _box_counts(rows[near], cols[near], ar, ac, box, radius) / around[at]
 
 
 def _window_counts(
@@ -238,28 +240,71 @@ def _window_counts(
     """At the cells ``at``, how many ``which`` cells lie in the square window around them.
 
     Only the box around ``at`` is counted (one integer box filter)."""
-    r0, r1, c0, c1 = box = _box(rows, cols, at, shape, radius)
-    inside = which & _inside(rows, cols, box)
-    wr, wc = rows[inside], cols[inside]
     ar, ac = rows[at], cols[at]
-    out = np.zeros(ar.shape[0], dtype=np.float64)
-    side = 2 * radius + 1
+    box = _box(ar, ac, shape, radius)
+    inside = which & _inside(rows, cols, box)
+    return _box_counts(rows[inside], cols[inside], ar, ac, box, radius)
+
+
+def _box_counts(
+    wr: NDArray[np.intp],
+    wc: NDArray[np.intp],
+    ar: NDArray[np.intp],
+    ac: NDArray[np.intp],
+    box: tuple[int, int, int, int],
+    radius: int,
+) -> NDArray[np.float64]:
+    """:func:`_window_counts` of the cells ``(wr, wc)``, all inside ``box`` (that of the
+    windows around the cells ``(ar, ac)``), at the cells ``(ar, ac)``."""
+    r0, r1, c0, c1 = box
+    width = c1 - c0 + 2 * radius  # the box's columns and the margins its windows reach
     # in bands of rows (each with the rows its windows reach): bounded temporaries
-    band = max(side, -(-_BAND_CELLS // max(c1 - c0, 1)))
+    band = max(2 * radius + 1, -(-_BAND_CELLS // width))
+    if r1 - r0 <= band:  # the usual case: one band holds the box
+        return _band_counts(wr, wc, ar, ac, (r0, r1 - r0), (c0, width), radius)
+    out = np.zeros(ar.shape[0], dtype=np.float64)
     for b0 in range(r0, r1, band):
         b1 = min(b0 + band, r1)
         here = (ar >= b0) & (ar < b1)
         if not here.any():
             continue
-        g0, g1 = max(b0 - radius, r0), min(b1 + radius, r1)
-        near = (wr >= g0) & (wr < g1)
-        grid = np.zeros((g1 - g0, c1 - c0), np.uint8)
-        grid[wr[near] - g0, wc[near] - c0] = 1
-        counts = cv2.boxFilter(
-            grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
+        near = (wr >= b0 - radius) & (wr < b1 + radius)
+        out[here] = _band_counts(
+            wr[near], wc[near], ar[here], ac[here], (b0, b1 - b0), (c0, width), radius
         )
-        out[here] = counts[ar[here] - g0, ac[here] - c0]
     return out
+
+
+def _band_counts(
+    wr: NDArray[np.intp],
+    wc: NDArray[np.intp],
+    ar: NDArray[np.intp],
+    ac: NDArray[np.intp],
+    band: tuple[int, int],
+    columns: tuple[int, int],
+    radius: int,
+) -> NDArray[np.float64]:
+    """At the cells ``(ar, ac)`` of the rows ``band = (b0, rows)``, how many of the cells
+    ``(wr, wc)`` lie in the square window around them, from one integral image.
+
+    The grid holds the band's rows and the ``radius`` rows above and below it, and the
+    ``columns = (c0, width)`` from ``c0 - radius`` on (every window inside it, the cells off
+    the map zero as in a box filter with a constant border); each window's count is four
+    lookups of the integral image (whole numbers: exactly what a box filter counts).
+    """
+    b0, rows = band
+    c0, width = columns
+    side = 2 * radius + 1
+    grid = np.zeros((rows + 2 * radius, width), np.uint8)
+    grid[wr - (b0 - radius), wc - (c0 - radius)] = 1
+    sums = np.asarray(cv2.integral(grid, sdepth=cv2.CV_32S)).reshape(-1)
+    step = width + 1  # the integral image has a leading row and column of zeros
+    corner = (ar - b0) * step + (ac - c0)  # each window's first row and column in the grid
+    far = side * step
+    counts = (
+        sums.take(corner + (far + side)) - sums.take(corner + far) - sums.take(corner + side)
+    ) + sums.take(corner)
+    return counts.astype(np.float64)
 
 
 #: Cells of a band of rows of :func:`_window_counts` (about 4 million).
@@ -267,15 +312,12 @@ _BAND_CELLS = 1 << 22
 
 
 def _box(
-    rows: NDArray[np.intp],
-    cols: NDArray[np.intp],
-    at: NDArray[np.bool_],
-    shape: tuple[int, int],
-    radius: int,
+    rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, int], radius: int
 ) -> tuple[int, int, int, int]:
-    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells ``at``."""
-    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
-    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
+    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells
+    ``(rows, cols)``."""
+    r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, shape[0])
+    c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, shape[1])
     return r0, r1, c0, c1
 
 
