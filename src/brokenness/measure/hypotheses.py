@@ -125,13 +125,15 @@ def rivals(
     """The candidates that put ``sample`` (on average) more than ``apart`` cells from where
     ``best`` does (not the best hypothesis itself, nor a copy of it), each with ``sample``
     moved by it."""
+    if not candidates:
+        return []
     at_best = best.apply(sample)
-    out = []
-    for c in candidates:
-        moved = c.transform.apply(sample)
-        if float(np.linalg.norm(moved - at_best, axis=1).mean()) > apart:
-            out.append((c, moved))
-    return out
+    moved = [c.transform.apply(sample) for c in candidates]
+    # every candidate's mean distance in one pass: each point's norm over its last axis and
+    # each candidate's mean a reduction of its own row (the same sums, in the same order, as
+    # one candidate at a time)
+    mean = np.linalg.norm(np.stack(moved) - at_best, axis=2).mean(axis=1)
+    return [(c, m) for c, m, d in zip(candidates, moved, mean.tolist(), strict=True) if d > apart]
 
 
 def rival_chance(
