@@ -819,13 +819,16 @@ class IFMIRegistrar:
         Repetitive buildings (rows of equal rooms, long corridors) give several peaks of
         similar height; the true one is not always the highest, so more than one translation
         per rotation can be handed on to be scored on the cells.
+
+        The surface (a float32 temporary of the caller) is overwritten: each peak found is
+        masked out in it before the next is looked for.
         """
         # statistics of the surface from a fixed subsample (speed), shared by its peaks
         mean, std = cv2.meanStdDev(np.ascontiguousarray(surface[::4, ::4]))
         level = (float(mean[0, 0]), float(std[0, 0]))
         if count == 1:
             return [cls._peak(surface, level)]
-        work = np.array(surface, dtype=np.float32, copy=True)
+        work = surface  # masked in place: no copy of the surface
         low = float(work.min())
         rows, cols = work.shape
         out = []
