@@ -62,7 +62,7 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
     n = float(source.shape[0])
     cs = (ones @ source) / n
     ct = (ones @ target) / n
-    h = source.T @ target - n * np.outer(cs, ct)  # 2x2 cross-covariance (times N)
+    h = source.T @ target - n * (cs[:, None] * ct[None, :])  # 2x2 cross-covariance (times N)
     angle = math.atan2(float(h[0, 1] - h[1, 0]), float(h[0, 0] + h[1, 1]))
     c, si = math.cos(angle), math.sin(angle)
     return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
