@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking import within_manhattan
 from ..masking.agreement import ball_offsets
 from ..transform import RigidTransform
@@ -78,7 +79,7 @@ def mostly_claimed(
     transform, agree = best
     if not agree.any():
         return False
-    moved = transform.apply(points[agree]).astype(np.float32)
+    moved = transform.apply(take_rows(points, agree)).astype(np.float32)
     cols = np.rint(moved[:, 0]).astype(np.intp) - offset[0]
     rows = np.rint(moved[:, 1]).astype(np.intp) - offset[1]
     h, w = near_claimed.shape
@@ -123,7 +124,7 @@ def mostly_on_claimed(
     if 2 * radius * (radius + 1) + 1 > _LOOKUP_BALL:
         claimed, offset = near_claimed(occupied, available, threshold)
         return mostly_claimed(best, points, claimed, threshold, offset)
-    moved = transform.apply(points[agree]).astype(np.float32)
+    moved = transform.apply(take_rows(points, agree)).astype(np.float32)
     cols = np.rint(moved[:, 0]).astype(np.intp)
     rows = np.rint(moved[:, 1]).astype(np.intp)
     h, w = occupied.shape

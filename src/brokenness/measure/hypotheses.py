@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate
 from ..transform import RigidTransform
@@ -106,13 +107,13 @@ def _refinements(
     agree = hard(moved)
     if not agree.any():
         return []
-    pivot = moved[agree].mean(axis=0)
+    pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(
         swept, sample, index.nearest_points, gate=threshold + 1.0, iterations=ICP_ITERATIONS
     )
     polished = polish_transform(
-        fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
+        fitted, take_rows(sample, hard(fitted.apply(sample))), index.occupied_distance, threshold
     )
     options = [polished, fitted, swept, transform]
     scores = soft_agreements(index.occupied_distance, options, sample, threshold)

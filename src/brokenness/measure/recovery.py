@@ -73,6 +73,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
@@ -224,9 +225,9 @@ def _share(
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     ar, ac = rows[at], cols[at]
     box = _box(ar, ac, shape, radius)
-    near = _inside(rows, cols, box)  # only those can count
-    near[near] = index.occupied_agreement(transform.apply(points[near]), threshold)
-    return _box_counts(rows[near], cols[near], ar, ac, box, radius) / around[at]
+    near = np.flatnonzero(_inside(rows, cols, box))  # only those can count
+    near = near[index.occupied_agreement(transform.apply(take_rows(points, near)), threshold)]
+    return _box_counts(rows.take(near), cols.take(near), ar, ac, box, radius) / around[at]
 
 
 def _window_counts(
@@ -611,6 +612,7 @@ class _Search:
             return None, None  # too few cells, or the registration's budget is spent
         pts = self.points
         left = np.flatnonzero(cells)
+        left_points = take_rows(pts, left)
         candidates = self._new_hypotheses(found, cells)
         if not candidates:
             return None, None
@@ -619,7 +621,7 @@ class _Search:
         # counted for the best few candidates by plain agreement
         plain = [
             np.count_nonzero(
-                self.index.occupied_agreement(c.transform.apply(pts[left]), settings.threshold)
+                self.index.occupied_agreement(c.transform.apply(left_points), settings.threshold)
             )
             for c in candidates
         ]
@@ -629,7 +631,7 @@ class _Search:
         }
         ranked.sort(key=lambda q: (-counts[q], q))
         best = best_hypothesis(
-            [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, settings.threshold
+            [candidates[q] for q in ranked[:_REFINED]], left_points, self.index, settings.threshold
         )
         if best is None:
             return None, None
@@ -639,7 +641,7 @@ class _Search:
         # chance: what the other candidates make of the suspects (rival_chance)
         p_step = rival_chance(
             candidates,
-            pts[left],
+            left_points,
             self.index,
             settings.threshold,
             transform,
@@ -649,8 +651,8 @@ class _Search:
         chance, _, needed = settings.needed(n, p_step)
         if k < needed:
             return None, _Shortfall(transform, tuple(candidates))
-        members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
-        if merge_target(found, pts[members], self.index, settings.loose) is not None:
+        members = left[with_fringe(transform, left_points, agree, self.index, settings.loose)]
+        if merge_target(found, take_rows(pts, members), self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0), None
 
@@ -694,8 +696,10 @@ class _Search:
         if k < needed:
             return None
         left = np.flatnonzero(taken)
-        members = left[with_fringe(transform, pts[left], np.ones(left.size, bool), index, loose)]
-        if merge_target(found, pts[members], index, loose) is not None:
+        members = left[
+            with_fringe(transform, take_rows(pts, left), np.ones(left.size, bool), index, loose)
+        ]
+        if merge_target(found, take_rows(pts, members), index, loose) is not None:
             return None
         return Found(transform, members, (k - chance) / k, 0.0)
 
@@ -710,7 +714,7 @@ class _Search:
         if not candidates:
             return None
         best = best_hypothesis(
-            candidates, self.points[members], self.index, self.settings.threshold
+            candidates, take_rows(self.points, members), self.index, self.settings.threshold
         )
         return None if best is None else best[0]
 
@@ -732,7 +736,7 @@ class _Search:
         return _new_ones(
             candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
             found,
-            pts[cells],
+            take_rows(pts, cells),
             settings.loose,
         )
 
@@ -749,6 +753,6 @@ class _Search:
             SUPPORT_RADIUS,
             self.around,
         )
-        moved = transform.apply(self.points[cells])
+        moved = transform.apply(take_rows(self.points, cells))
         agree = self.index.occupied_agreement(moved, self.settings.threshold)
         return (share >= SUPPORT_SHARE) & agree

@@ -69,6 +69,7 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
@@ -510,7 +511,7 @@ class IFMIRegistrar:
         xy = _refine.edge_points(crop, cells)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
-            xy = xy[pick]
+            xy = take_rows(xy, pick)
         points = xy.astype(np.float64) + np.array([c0, r0], dtype=np.float64)
         coarse = _coarse(crop, cells, factor)
         for_rotation = coarse if rot_factor == factor else _coarse(crop, cells, rot_factor)
