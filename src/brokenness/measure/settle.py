@@ -105,7 +105,7 @@ MAX_SHIFT = TILE_SIDE // 2
 #: ... counted on at most this many cells (an even stride of them), in chunks of
 #: ``_SHIFT_CHUNK`` cells (bounded temporaries).
 SHIFT_SAMPLE = 1000
-_SHIFT_CHUNK = 64
+_SHIFT_CHUNK = 256
 #: At most this many distinct refits of a partition are paired in the search for a split.
 MAX_SPLIT_REFITS = 32
 
@@ -489,7 +489,9 @@ def _shift_search(
         offsets = shifts[:, 0] * width + shifts[:, 1]
         counts = np.zeros(offsets.size, dtype=np.int64)
         for start in range(0, at.size, _SHIFT_CHUNK):
-            counts += flat[at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]].sum(axis=0)
+            counts += flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]).sum(
+                axis=0
+            )
         return counts
 
     # every other shift first (a cell agrees within ``threshold``, so a part's peak is
