@@ -1,5 +1,5 @@
-"""Selecting rows of point arrays (shape ``(N, 2)``), as the measure does thousands of times
-a call."""
+"""Selecting rows of point arrays (shape ``(N, 2)``) and reading cells of grids at points, as
+the measure does thousands of times a call."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["take_rows"]
+__all__ = ["cells_at", "take_rows"]
 
 _T = TypeVar("_T", bound=np.generic)
 
@@ -38,3 +38,14 @@ def take_rows(points: NDArray[_T], which: NDArray[np.bool_] | NDArray[np.integer
     """
     index = np.flatnonzero(which) if which.dtype == np.bool_ else which
     return points.take(index, axis=0)
+
+
+def cells_at(
+    grid: NDArray[_T], rows: NDArray[np.integer], cols: NDArray[np.integer]
+) -> NDArray[_T]:
+    """``grid[rows, cols]`` (the indices on the grid), read by flat index when the grid is
+    C-contiguous: numpy's indexing by rows and columns costs about three times a
+    :meth:`numpy.ndarray.take` of the flat indices (13,000 cells: 62 us against 19 us)."""
+    if not grid.flags.c_contiguous:
+        return grid[rows, cols]
+    return grid.reshape(-1).take(rows * grid.shape[1] + cols)

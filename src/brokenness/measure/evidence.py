@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .._points import take_rows
+from .._points import cells_at, take_rows
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import DistanceMap, beyond
@@ -230,9 +230,9 @@ def contradiction(
             x, y = moved[:, 0], moved[:, 1]
             inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
             x, y = x[inside], y[inside]
-            on_known = ref_states[y, x] != UNKNOWN
+            on_known = cells_at(ref_states, y, x) != UNKNOWN
             counted[j] += int(np.count_nonzero(on_known))
-            contradicting[j] += int(np.count_nonzero(on_known & occupied_ref[y, x]))
+            contradicting[j] += int(np.count_nonzero(on_known & cells_at(occupied_ref, y, x)))
     return Contradiction(counted, contradicting, chance, stride)
 
 
@@ -326,7 +326,7 @@ def wall_contradiction(
         x, y = moved[:, 0], moved[:, 1]
         inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
         x, y = x[inside], y[inside]
-        landed = states[y, x]
+        landed = cells_at(states, y, x)
         counted += int(np.count_nonzero(landed != UNKNOWN))
         contradicting += int(np.count_nonzero((landed == FREE) & beyond(distance[y, x], limit)))
     return WallContradiction(counted, contradicting, chance)
