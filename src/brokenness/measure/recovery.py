@@ -222,12 +222,28 @@ def _share(
 ) -> NDArray[np.float64]:
     """At the cells ``at``, the share of the occupied cells around that agree under
     ``transform`` (``around``: how many occupied cells there are around each cell)."""
+    return _share_agreeing(transform, points, at, index, threshold, shape, radius, around)[0]
+
+
+def _share_agreeing(
+    transform: RigidTransform,
+    points: NDArray[np.float64],
+    at: NDArray[np.bool_],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    radius: int,
+    around: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """:func:`_share`, and the cells (indices of ``points``, ascending) that agree under
+    ``transform`` in the box of the windows around the cells ``at`` (``at`` among them)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     ar, ac = rows[at], cols[at]
     box = _box(ar, ac, shape, radius)
     near = np.flatnonzero(_inside(rows, cols, box))  # only those can count
     near = near[index.occupied_agreement(transform.apply(take_rows(points, near)), threshold)]
-    return _box_counts(rows.take(near), cols.take(near), ar, ac, box, radius) / around[at]
+    counts = _box_counts(rows.take(near), cols.take(near), ar, ac, box, radius)
+    return counts / around[at], near
 
 
 def _window_counts(
@@ -745,7 +761,7 @@ class _Search:
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
         :data:`SUPPORT_SHARE` of the occupied cells around them agreeing too."""
-        share = _share(
+        share, agreeing = _share_agreeing(
             transform,
             self.points,
             cells,
@@ -755,6 +771,8 @@ class _Search:
             SUPPORT_RADIUS,
             self.around,
         )
-        moved = transform.apply(take_rows(self.points, cells))
-        agree = self.index.occupied_agreement(moved, self.settings.threshold)
-        return (share >= SUPPORT_SHARE) & agree
+        # the cells' own agreement, as the share's lookup found it (each cell's lookup is
+        # its own: the same as looking the cells up alone)
+        agree = np.zeros(self.points.shape[0], dtype=bool)
+        agree[agreeing] = True
+        return (share >= SUPPORT_SHARE) & agree[cells]
