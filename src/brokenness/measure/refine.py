@@ -171,12 +171,29 @@ def _turned(
 ) -> NDArray[np.floating]:
     """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
     (written to ``out`` if given: computed in float64, then rounded to ``out``'s type)."""
+    return _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
+
+
+def _offsets(
+    moved: NDArray[np.float64], pivot: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The points ``moved`` less ``pivot``, as the columns ``(dx, dy)`` that :func:`_turned`
+    turns."""
+    return moved[:, 0] - pivot[0], moved[:, 1] - pivot[1]
+
+
+def _turn_offsets(
+    offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
+    pivot: NDArray[np.float64],
+    angles: list[float],
+    out: NDArray[np.floating] | None = None,
+) -> NDArray[np.floating]:
+    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given."""
+    dx, dy = offsets
     a = np.asarray(angles, dtype=np.float64)[:, None]
     c, s = np.cos(a), np.sin(a)
-    dx = moved[:, 0] - pivot[0]
-    dy = moved[:, 1] - pivot[1]
     if out is None:
-        out = np.empty((a.shape[0], moved.shape[0], 2))
+        out = np.empty((a.shape[0], dx.shape[0], 2))
     out[:, :, 0] = c * dx - s * dy + pivot[0]
     out[:, :, 1] = s * dx + c * dy + pivot[1]
     return out
@@ -246,6 +263,7 @@ def polish_transform(
     # the moves in the float32 of the lookup: each coordinate computed in float64 and
     # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy)
     moves = np.empty((6, moved.shape[0], 2), dtype=np.float32)
+    offsets, fresh = _offsets(moved, pivot), True  # fresh: moved changed since the last round
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
         # and y), scored together; the best one is taken if it improves, else the steps
@@ -258,10 +276,13 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        _turned(moved, pivot, [rot_step, -rot_step], out=moves[:2])
-        # the four shifts, each along its own axis (float64 sums, rounded into the moves)
-        moves[2:4, :, 1] = moved[:, 1]
-        moves[4:6, :, 0] = moved[:, 0]
+        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=moves[:2])
+        # the four shifts, each along its own axis (float64 sums, rounded into the moves);
+        # the other axis is moved's, written again only when moved has changed
+        if fresh:
+            moves[2:4, :, 1] = moved[:, 1]
+            moves[4:6, :, 0] = moved[:, 0]
+            fresh = False
         np.add(moved[:, 0], shift_step, out=moves[2, :, 0])
         np.subtract(moved[:, 0], shift_step, out=moves[3, :, 0])
         np.add(moved[:, 1], shift_step, out=moves[4, :, 1])
@@ -273,6 +294,7 @@ def polish_transform(
             best = _turn_about(pivot, *steps[k]).compose(best)
             best_score = float(scores[k])
             moved = best.apply(points)
+            offsets, fresh = _offsets(moved, pivot), True
         else:
             rot_step *= 0.5
             shift_step *= 0.5
