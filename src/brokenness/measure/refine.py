@@ -283,10 +283,9 @@ def polish_transform(
             moves[2:4, :, 1] = moved[:, 1]
             moves[4:6, :, 0] = moved[:, 0]
             fresh = False
-        np.add(moved[:, 0], shift_step, out=moves[2, :, 0])
-        np.subtract(moved[:, 0], shift_step, out=moves[3, :, 0])
-        np.add(moved[:, 1], shift_step, out=moves[4, :, 1])
-        np.subtract(moved[:, 1], shift_step, out=moves[5, :, 1])
+        both = np.array([[shift_step], [-shift_step]])  # x + (-s) is x - s, exactly
+        np.add(moved[:, 0], both, out=moves[2:4, :, 0])
+        np.add(moved[:, 1], both, out=moves[4:6, :, 1])
         scores = _soft_scores(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
