@@ -247,7 +247,8 @@ def _remap(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=float(outside),
     )
-    return np.asarray(out).reshape(-1)[:count]
+    samples = cast("NDArray[np.float32] | NDArray[np.uint16]", np.asarray(out).reshape(-1))
+    return samples[:count]
 
 
 def _whole_samples(

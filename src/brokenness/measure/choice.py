@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import cells_at, take_rows
 from ..masking import within_manhattan
 from ..masking.agreement import ball_offsets
 from ..transform import RigidTransform
@@ -78,12 +79,12 @@ def mostly_claimed(
     transform, agree = best
     if not agree.any():
         return False
-    moved = transform.apply(points[agree]).astype(np.float32)
+    moved = transform.apply(take_rows(points, agree)).astype(np.float32)
     cols = np.rint(moved[:, 0]).astype(np.intp) - offset[0]
     rows = np.rint(moved[:, 1]).astype(np.intp) - offset[1]
     h, w = near_claimed.shape
     inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
-    on_claimed = near_claimed[rows[inside], cols[inside]]
+    on_claimed = cells_at(near_claimed, rows[inside], cols[inside])
     return bool(np.count_nonzero(on_claimed) * 2 >= np.count_nonzero(agree))
 
 
@@ -123,7 +124,7 @@ def mostly_on_claimed(
     if 2 * radius * (radius + 1) + 1 > _LOOKUP_BALL:
         claimed, offset = near_claimed(occupied, available, threshold)
         return mostly_claimed(best, points, claimed, threshold, offset)
-    moved = transform.apply(points[agree]).astype(np.float32)
+    moved = transform.apply(take_rows(points, agree)).astype(np.float32)
     cols = np.rint(moved[:, 0]).astype(np.intp)
     rows = np.rint(moved[:, 1]).astype(np.intp)
     h, w = occupied.shape
@@ -133,7 +134,8 @@ def mostly_on_claimed(
     for dr, dc in ball_offsets(radius):
         r, c = rows + dr, cols + dc
         k = np.flatnonzero((r >= 0) & (r < h) & (c >= 0) & (c < w) & ~on)
-        on[k] = occupied[r[k], c[k]] & ~available[r[k], c[k]]
+        rk, ck = r[k], c[k]
+        on[k] = cells_at(occupied, rk, ck) & ~cells_at(available, rk, ck)
     return bool(np.count_nonzero(on) * 2 >= np.count_nonzero(agree))
 
 

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from .._points import cells_at, take_rows
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import DistanceMap, beyond
@@ -225,13 +226,13 @@ def contradiction(
             sel = owners == j
             if not sel.any():
                 continue
-            moved = np.rint(f.transform.apply(pts[sel])).astype(np.intp)
+            moved = np.rint(f.transform.apply(take_rows(pts, sel))).astype(np.intp)
             x, y = moved[:, 0], moved[:, 1]
             inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
             x, y = x[inside], y[inside]
-            on_known = ref_states[y, x] != UNKNOWN
+            on_known = cells_at(ref_states, y, x) != UNKNOWN
             counted[j] += int(np.count_nonzero(on_known))
-            contradicting[j] += int(np.count_nonzero(on_known & occupied_ref[y, x]))
+            contradicting[j] += int(np.count_nonzero(on_known & cells_at(occupied_ref, y, x)))
     return Contradiction(counted, contradicting, chance, stride)
 
 
@@ -315,17 +316,17 @@ def wall_contradiction(
     walls = ~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))
     lost = walls & ~assigned
     if lost.any():  # the partition of the nearest assigned cell
-        _, nearest = cKDTree(points[assigned]).query(points[lost])
+        _, nearest = cKDTree(take_rows(points, assigned)).query(take_rows(points, lost))
         owner[lost] = owner[assigned][nearest]
     counted = contradicting = 0
     h, w = states.shape
     for j, f in enumerate(found):
         sel = walls & (owner == j)
-        moved = np.rint(f.transform.apply(points[sel])).astype(np.intp)
+        moved = np.rint(f.transform.apply(take_rows(points, sel))).astype(np.intp)
         x, y = moved[:, 0], moved[:, 1]
         inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
         x, y = x[inside], y[inside]
-        landed = states[y, x]
+        landed = cells_at(states, y, x)
         counted += int(np.count_nonzero(landed != UNKNOWN))
         contradicting += int(np.count_nonzero((landed == FREE) & beyond(distance[y, x], limit)))
     return WallContradiction(counted, contradicting, chance)

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate
 from ..transform import RigidTransform
@@ -106,13 +107,13 @@ def _refinements(
     agree = hard(moved)
     if not agree.any():
         return []
-    pivot = moved[agree].mean(axis=0)
+    pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(
         swept, sample, index.nearest_points, gate=threshold + 1.0, iterations=ICP_ITERATIONS
     )
     polished = polish_transform(
-        fitted, sample[hard(fitted.apply(sample))], index.occupied_distance, threshold
+        fitted, take_rows(sample, hard(fitted.apply(sample))), index.occupied_distance, threshold
     )
     options = [polished, fitted, swept, transform]
     scores = soft_agreements(index.occupied_distance, options, sample, threshold)
@@ -125,13 +126,15 @@ def rivals(
     """The candidates that put ``sample`` (on average) more than ``apart`` cells from where
     ``best`` does (not the best hypothesis itself, nor a copy of it), each with ``sample``
     moved by it."""
+    if not candidates:
+        return []
     at_best = best.apply(sample)
-    out = []
-    for c in candidates:
-        moved = c.transform.apply(sample)
-        if float(np.linalg.norm(moved - at_best, axis=1).mean()) > apart:
-            out.append((c, moved))
-    return out
+    moved = [c.transform.apply(sample) for c in candidates]
+    # every candidate's mean distance in one pass: each point's norm over its last axis and
+    # each candidate's mean a reduction of its own row (the same sums, in the same order, as
+    # one candidate at a time)
+    mean = np.linalg.norm(np.stack(moved) - at_best, axis=2).mean(axis=1)
+    return [(c, m) for c, m, d in zip(candidates, moved, mean.tolist(), strict=True) if d > apart]
 
 
 def rival_chance(

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from .._points import take_rows
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
 from ..masking.distance import lookup_distance
@@ -204,7 +205,7 @@ def assemble(
     largest = found[order[0]].transform
     for new_index, i in enumerate(order):
         f = found[i]
-        pts = points[f.members]
+        pts = take_rows(points, f.members)
         labels[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)] = new_index
         offset = math.degrees(math.remainder(f.transform.rotation - largest.rotation, 2 * math.pi))
         displacement = float(f.transform.displacement(largest, pts).mean()) if new_index else 0.0
@@ -300,13 +301,13 @@ def _joined(
     """The partition ``j`` joins (its index) and the joined partition, if any."""
     others = [q for q in range(len(found)) if q != j]
     target = merge_target(
-        [found[q] for q in others], points[found[j].members], index, merge_threshold
+        [found[q] for q in others], take_rows(points, found[j].members), index, merge_threshold
     )
     if target is None:
         return None
     i = others[target]
     union = np.concatenate([found[i].members, found[j].members])
-    pts = points[union]
+    pts = take_rows(points, union)
     agree = [index.occupied_agreement(found[q].transform.apply(pts), threshold) for q in (i, j)]
     agreeing = [int(np.count_nonzero(a)) for a in agree]
     kept = 0 if agreeing[0] >= agreeing[1] else 1
@@ -352,7 +353,7 @@ def drop_redundant(
     while len(found) > 1:
         shortfall: list[float] = []  # evidence over what is asked: below 1 fails
         for j, f in enumerate(found):
-            pts = points[f.members]
+            pts = take_rows(points, f.members)
             own = index.occupied_agreement(f.transform.apply(pts), threshold)
             twins = [
                 g

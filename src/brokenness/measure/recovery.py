@@ -73,6 +73,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
@@ -221,10 +222,28 @@ def _share(
 ) -> NDArray[np.float64]:
     """At the cells ``at``, the share of the occupied cells around that agree under
     ``transform`` (``around``: how many occupied cells there are around each cell)."""
+    return _share_agreeing(transform, points, at, index, threshold, shape, radius, around)[0]
+
+
+def _share_agreeing(
+    transform: RigidTransform,
+    points: NDArray[np.float64],
+    at: NDArray[np.bool_],
+    index: ReferenceIndex,
+    threshold: float,
+    shape: tuple[int, int],
+    radius: int,
+    around: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """:func:`_share`, and the cells (indices of ``points``, ascending) that agree under
+    ``transform`` in the box of the windows around the cells ``at`` (``at`` among them)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    near = _inside(rows, cols, _box(rows, cols, at, shape, radius))  # only those can count
-    near[near] = index.occupied_agreement(transform.apply(points[near]), threshold)
-    return _window_counts(rows, cols, near, at, shape, radius) / around[at]
+    ar, ac = rows[at], cols[at]
+    box = _box(ar, ac, shape, radius)
+    near = np.flatnonzero(_inside(rows, cols, box))  # only those can count
+    near = near[index.occupied_agreement(transform.apply(take_rows(points, near)), threshold)]
+    counts = _box_counts(rows.take(near), cols.take(near), ar, ac, box, radius)
+    return counts / around[at], near
 
 
 def _window_counts(
@@ -238,44 +257,87 @@ def _window_counts(
     """At the cells ``at``, how many ``which`` cells lie in the square window around them.
 
     Only the box around ``at`` is counted (one integer box filter)."""
-    r0, r1, c0, c1 = box = _box(rows, cols, at, shape, radius)
-    inside = which & _inside(rows, cols, box)
-    wr, wc = rows[inside], cols[inside]
     ar, ac = rows[at], cols[at]
-    out = np.zeros(ar.shape[0], dtype=np.float64)
-    side = 2 * radius + 1
+    box = _box(ar, ac, shape, radius)
+    inside = which & _inside(rows, cols, box)
+    return _box_counts(rows[inside], cols[inside], ar, ac, box, radius)
+
+
+def _box_counts(
+    wr: NDArray[np.intp],
+    wc: NDArray[np.intp],
+    ar: NDArray[np.intp],
+    ac: NDArray[np.intp],
+    box: tuple[int, int, int, int],
+    radius: int,
+) -> NDArray[np.float64]:
+    """:func:`_window_counts` of the cells ``(wr, wc)``, all inside ``box`` (that of the
+    windows around the cells ``(ar, ac)``), at the cells ``(ar, ac)``."""
+    r0, r1, c0, c1 = box
+    width = c1 - c0 + 2 * radius  # the box's columns and the margins its windows reach
     # in bands of rows (each with the rows its windows reach): bounded temporaries
-    band = max(side, -(-_BAND_CELLS // max(c1 - c0, 1)))
+    band = max(2 * radius + 1, -(-_BAND_CELLS // width))
+    if r1 - r0 <= band:  # the usual case: one band holds the box
+        return _band_counts(wr, wc, ar, ac, (r0, r1 - r0), (c0, width), radius)
+    out = np.zeros(ar.shape[0], dtype=np.float64)
     for b0 in range(r0, r1, band):
         b1 = min(b0 + band, r1)
         here = (ar >= b0) & (ar < b1)
         if not here.any():
             continue
-        g0, g1 = max(b0 - radius, r0), min(b1 + radius, r1)
-        near = (wr >= g0) & (wr < g1)
-        grid = np.zeros((g1 - g0, c1 - c0), np.uint8)
-        grid[wr[near] - g0, wc[near] - c0] = 1
-        counts = cv2.boxFilter(
-            grid, cv2.CV_16U, (side, side), normalize=False, borderType=cv2.BORDER_CONSTANT
+        near = (wr >= b0 - radius) & (wr < b1 + radius)
+        out[here] = _band_counts(
+            wr[near], wc[near], ar[here], ac[here], (b0, b1 - b0), (c0, width), radius
         )
-        out[here] = counts[ar[here] - g0, ac[here] - c0]
     return out
 
 
-#: Cells of a band of rows of :func:`_window_counts` (about 4 million).
-_BAND_CELLS = 1 << 22
+def _band_counts(
+    wr: NDArray[np.intp],
+    wc: NDArray[np.intp],
+    ar: NDArray[np.intp],
+    ac: NDArray[np.intp],
+    band: tuple[int, int],
+    columns: tuple[int, int],
+    radius: int,
+) -> NDArray[np.float64]:
+    """At the cells ``(ar, ac)`` of the rows ``band = (b0, rows)``, how many of the cells
+    ``(wr, wc)`` lie in the square window around them, from one integral image.
+
+    The grid holds the band's rows and the ``radius`` rows above and below it, and the
+    ``columns = (c0, width)`` from ``c0 - radius`` on (every window inside it, the cells off
+    the map zero as in a box filter with a constant border); each window's count is four
+    lookups of the integral image (whole numbers: exactly what a box filter counts).
+    """
+    b0, rows = band
+    c0, width = columns
+    side = 2 * radius + 1
+    grid = np.zeros((rows + 2 * radius, width), np.uint8)
+    # marked by flat index (a fresh C-contiguous grid: its flat view), a third of the cost
+    # of indexing it by rows and columns
+    grid.reshape(-1)[(wr - (b0 - radius)) * width + (wc - (c0 - radius))] = 1
+    sums = np.asarray(cv2.integral(grid, sdepth=cv2.CV_32S)).reshape(-1)
+    step = width + 1  # the integral image has a leading row and column of zeros
+    corner = (ar - b0) * step + (ac - c0)  # each window's first row and column in the grid
+    far = side * step
+    counts = (
+        sums.take(corner + (far + side)) - sums.take(corner + far) - sums.take(corner + side)
+    ) + sums.take(corner)
+    return counts.astype(np.float64)
+
+
+#: Cells of a band of rows of :func:`_window_counts` (about 2 million: its integral image,
+#: four bytes a cell, takes what the box filter's two-byte counts of twice as many took).
+_BAND_CELLS = 1 << 21
 
 
 def _box(
-    rows: NDArray[np.intp],
-    cols: NDArray[np.intp],
-    at: NDArray[np.bool_],
-    shape: tuple[int, int],
-    radius: int,
+    rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, int], radius: int
 ) -> tuple[int, int, int, int]:
-    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells ``at``."""
-    r0, r1 = max(int(rows[at].min()) - radius, 0), min(int(rows[at].max()) + radius + 1, shape[0])
-    c0, c1 = max(int(cols[at].min()) - radius, 0), min(int(cols[at].max()) + radius + 1, shape[1])
+    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells
+    ``(rows, cols)``."""
+    r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, shape[0])
+    c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, shape[1])
     return r0, r1, c0, c1
 
 
@@ -315,7 +377,7 @@ def neighbourhood_counts(
         normalize=False,
         borderType=cv2.BORDER_CONSTANT,
     )
-    return np.rint(summed[rows - r0, cols - c0]).astype(np.int64)
+    return np.rint(summed.reshape(-1).take(flat)).astype(np.int64)  # flat: each cell's block
 
 
 def _owner_counts(
@@ -569,6 +631,7 @@ class _Search:
             return None, None  # too few cells, or the registration's budget is spent
         pts = self.points
         left = np.flatnonzero(cells)
+        left_points = take_rows(pts, left)
         candidates = self._new_hypotheses(found, cells)
         if not candidates:
             return None, None
@@ -577,7 +640,7 @@ class _Search:
         # counted for the best few candidates by plain agreement
         plain = [
             np.count_nonzero(
-                self.index.occupied_agreement(c.transform.apply(pts[left]), settings.threshold)
+                self.index.occupied_agreement(c.transform.apply(left_points), settings.threshold)
             )
             for c in candidates
         ]
@@ -587,7 +650,7 @@ class _Search:
         }
         ranked.sort(key=lambda q: (-counts[q], q))
         best = best_hypothesis(
-            [candidates[q] for q in ranked[:_REFINED]], pts[left], self.index, settings.threshold
+            [candidates[q] for q in ranked[:_REFINED]], left_points, self.index, settings.threshold
         )
         if best is None:
             return None, None
@@ -597,7 +660,7 @@ class _Search:
         # chance: what the other candidates make of the suspects (rival_chance)
         p_step = rival_chance(
             candidates,
-            pts[left],
+            left_points,
             self.index,
             settings.threshold,
             transform,
@@ -607,8 +670,8 @@ class _Search:
         chance, _, needed = settings.needed(n, p_step)
         if k < needed:
             return None, _Shortfall(transform, tuple(candidates))
-        members = left[with_fringe(transform, pts[left], agree, self.index, settings.loose)]
-        if merge_target(found, pts[members], self.index, settings.loose) is not None:
+        members = left[with_fringe(transform, left_points, agree, self.index, settings.loose)]
+        if merge_target(found, take_rows(pts, members), self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0), None
 
@@ -652,8 +715,10 @@ class _Search:
         if k < needed:
             return None
         left = np.flatnonzero(taken)
-        members = left[with_fringe(transform, pts[left], np.ones(left.size, bool), index, loose)]
-        if merge_target(found, pts[members], index, loose) is not None:
+        members = left[
+            with_fringe(transform, take_rows(pts, left), np.ones(left.size, bool), index, loose)
+        ]
+        if merge_target(found, take_rows(pts, members), index, loose) is not None:
             return None
         return Found(transform, members, (k - chance) / k, 0.0)
 
@@ -668,7 +733,7 @@ class _Search:
         if not candidates:
             return None
         best = best_hypothesis(
-            candidates, self.points[members], self.index, self.settings.threshold
+            candidates, take_rows(self.points, members), self.index, self.settings.threshold
         )
         return None if best is None else best[0]
 
@@ -690,14 +755,14 @@ class _Search:
         return _new_ones(
             candidates_of(self.registrar, self.reference, states, 2 * settings.max_candidates),
             found,
-            pts[cells],
+            take_rows(pts, cells),
             settings.loose,
         )
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
         :data:`SUPPORT_SHARE` of the occupied cells around them agreeing too."""
-        share = _share(
+        share, agreeing = _share_agreeing(
             transform,
             self.points,
             cells,
@@ -707,6 +772,8 @@ class _Search:
             SUPPORT_RADIUS,
             self.around,
         )
-        moved = transform.apply(self.points[cells])
-        agree = self.index.occupied_agreement(moved, self.settings.threshold)
-        return (share >= SUPPORT_SHARE) & agree
+        # the cells' own agreement, as the share's lookup found it (each cell's lookup is
+        # its own: the same as looking the cells up alone)
+        agree = np.zeros(self.points.shape[0], dtype=bool)
+        agree[agreeing] = True
+        return (share >= SUPPORT_SHARE) & agree[cells]

@@ -116,6 +116,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._memory import small_pages
+from .._points import take_rows
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
 from ..limits import check_threshold
@@ -552,7 +553,7 @@ def _recurse(
         if occupied_count(moving_states) < min_cells:
             break  # what is left is scattered noise: nothing to register
         left = np.flatnonzero(remaining)
-        left_points = points[left]
+        left_points = take_rows(points, left)
         n = left.size
         # the rule with p0 while the hypotheses are gathered (when to widen the search); with
         # the chance of the best hypothesis's rivals once it is known (the stopping rule)
@@ -635,9 +636,10 @@ def _recurse(
         transform, agree = best
         k = int(np.count_nonzero(agree))
         members = left[with_fringe(transform, left_points, agree, index, merge_threshold)]
-        moved = transform.apply(points[members])
+        member_points = take_rows(points, members)
+        moved = transform.apply(member_points)
         # Merge into an earlier partition whose transform explains this set as well.
-        target = merge_target(found, points[members], index, merge_threshold)
+        target = merge_target(found, member_points, index, merge_threshold)
         remaining[members] = False
         # the walls still available to the next step (none: this was the last step)
         last = (

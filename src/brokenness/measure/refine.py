@@ -62,7 +62,7 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
     n = float(source.shape[0])
     cs = (ones @ source) / n
     ct = (ones @ target) / n
-    h = source.T @ target - n * np.outer(cs, ct)  # 2x2 cross-covariance (times N)
+    h = source.T @ target - n * (cs[:, None] * ct[None, :])  # 2x2 cross-covariance (times N)
     angle = math.atan2(float(h[0, 1] - h[1, 0]), float(h[0, 0] + h[1, 1]))
     c, si = math.cos(angle), math.sin(angle)
     return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
@@ -153,7 +153,11 @@ def sweep_rotation(
     n = int(round(half_range_deg / step_deg))
     deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
     moved = transform.apply(points)
-    fan = np.concatenate([moved[None], _turned(moved, pivot, deltas)])
+    # the fan in the float32 of the lookup, each point rounded once from float64 as the
+    # lookup would round it (no float64 copy of the fan)
+    fan = np.empty((len(deltas) + 1, moved.shape[0], 2), dtype=np.float32)
+    fan[0] = moved
+    _turned(moved, pivot, deltas, out=fan[1:])
     k = int(np.argmax(_soft_scores(distance_map, fan, threshold)))
     # the first of equal scores: no turn wins ties
     return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
@@ -163,16 +167,33 @@ def _turned(
     moved: NDArray[np.float64],
     pivot: NDArray[np.float64],
     angles: list[float],
-    out: NDArray[np.float64] | None = None,
-) -> NDArray[np.float64]:
+    out: NDArray[np.floating] | None = None,
+) -> NDArray[np.floating]:
     """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
-    (written to ``out`` if given)."""
+    (written to ``out`` if given: computed in float64, then rounded to ``out``'s type)."""
+    return _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
+
+
+def _offsets(
+    moved: NDArray[np.float64], pivot: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The points ``moved`` less ``pivot``, as the columns ``(dx, dy)`` that :func:`_turned`
+    turns."""
+    return moved[:, 0] - pivot[0], moved[:, 1] - pivot[1]
+
+
+def _turn_offsets(
+    offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
+    pivot: NDArray[np.float64],
+    angles: list[float],
+    out: NDArray[np.floating] | None = None,
+) -> NDArray[np.floating]:
+    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given."""
+    dx, dy = offsets
     a = np.asarray(angles, dtype=np.float64)[:, None]
     c, s = np.cos(a), np.sin(a)
-    dx = moved[:, 0] - pivot[0]
-    dy = moved[:, 1] - pivot[1]
     if out is None:
-        out = np.empty((a.shape[0], moved.shape[0], 2))
+        out = np.empty((a.shape[0], dx.shape[0], 2))
     out[:, :, 0] = c * dx - s * dy + pivot[0]
     out[:, :, 1] = s * dx + c * dy + pivot[1]
     return out
@@ -239,7 +260,10 @@ def polish_transform(
     best_score = soft_agreement(distance_map, moved, threshold)
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
-    moves = np.empty((6, moved.shape[0], 2))
+    # the moves in the float32 of the lookup: each coordinate computed in float64 and
+    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy)
+    moves = np.empty((6, moved.shape[0], 2), dtype=np.float32)
+    offsets, fresh = _offsets(moved, pivot), True  # fresh: moved changed since the last round
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
         # and y), scored together; the best one is taken if it improves, else the steps
@@ -252,12 +276,16 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        _turned(moved, pivot, [rot_step, -rot_step], out=moves[:2])
-        moves[2:] = moved  # the four shifts, each along its own axis
-        moves[2, :, 0] += shift_step
-        moves[3, :, 0] -= shift_step
-        moves[4, :, 1] += shift_step
-        moves[5, :, 1] -= shift_step
+        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=moves[:2])
+        # the four shifts, each along its own axis (float64 sums, rounded into the moves);
+        # the other axis is moved's, written again only when moved has changed
+        if fresh:
+            moves[2:4, :, 1] = moved[:, 1]
+            moves[4:6, :, 0] = moved[:, 0]
+            fresh = False
+        both = np.array([[shift_step], [-shift_step]])  # x + (-s) is x - s, exactly
+        np.add(moved[:, 0], both, out=moves[2:4, :, 0])
+        np.add(moved[:, 1], both, out=moves[4:6, :, 1])
         scores = _soft_scores(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
@@ -265,6 +293,7 @@ def polish_transform(
             best = _turn_about(pivot, *steps[k]).compose(best)
             best_score = float(scores[k])
             moved = best.apply(points)
+            offsets, fresh = _offsets(moved, pivot), True
         else:
             rot_step *= 0.5
             shift_step *= 0.5

@@ -73,6 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
@@ -104,7 +105,7 @@ MAX_SHIFT = TILE_SIDE // 2
 #: ... counted on at most this many cells (an even stride of them), in chunks of
 #: ``_SHIFT_CHUNK`` cells (bounded temporaries).
 SHIFT_SAMPLE = 1000
-_SHIFT_CHUNK = 64
+_SHIFT_CHUNK = 256
 #: At most this many distinct refits of a partition are paired in the search for a split.
 MAX_SPLIT_REFITS = 32
 
@@ -291,7 +292,7 @@ def _best_split(
     best, best_gain = None, 0
     for j in range(agree.shape[0]):
         others = (covered - agree[j]) > 0
-        mine = _distinct(j, seeds, candidates, offered, walls[agree[j]], ~others)
+        mine = _distinct(j, seeds, candidates, offered, take_rows(walls, agree[j]), ~others)
         if mine.size == 0:
             continue
         open_cells = int(np.count_nonzero(~others))
@@ -319,8 +320,8 @@ def _best_split(
             only_x = open_at[halves[x] & ~halves[y]]
             only_y = open_at[halves[y] & ~halves[x]]
             rest = [t for q, t in enumerate(transforms) if q != j]
-            if _explains([tx, *rest], walls[only_y], index, settings) or _explains(
-                [ty, *rest], walls[only_x], index, settings
+            if _explains([tx, *rest], take_rows(walls, only_y), index, settings) or _explains(
+                [ty, *rest], take_rows(walls, only_x), index, settings
             ):
                 continue
             chance = settings.needed(open_cells - int(counts[x]), p0)[0]
@@ -393,10 +394,11 @@ def _candidates(
         share = agree[:, cells].mean(axis=1)
         j = int(np.argmax(share))  # the partition of the tile: a tile mostly holds one part
         if SUPPORT_SHARE <= share[j] < EXPLAINED:
+            tile_points = take_rows(points, cells)
             origins = [transforms[j]]
             shifted = _shift_search(
                 transforms[j],
-                points[cells],
+                tile_points,
                 index,
                 settings.threshold,
                 settings.loose,
@@ -406,7 +408,7 @@ def _candidates(
                 origins.append(shifted)
             for refit in origins:
                 for _ in range(REFITS):
-                    refit = _refit(refit, points[cells], index, settings)
+                    refit = _refit(refit, tile_points, index, settings)
                 if refit is not transforms[j]:
                     seeds.append(j)
                     candidates.append(refit)
@@ -421,18 +423,24 @@ def _shifted_copies(
     settings: Settings,
 ) -> tuple[list[int], list[RigidTransform]]:
     """Per partition, its transform shifted to where most cells no partition explains agree."""
-    left = ~agree.any(axis=0)
+    left = np.asarray(~agree.any(axis=0))
     seeds: list[int] = []
     candidates: list[RigidTransform] = []
     if np.count_nonzero(left) < settings.min_cells:
         return seeds, candidates
+    left_points = take_rows(points, left)
     for j, t in enumerate(transforms):
         shifted = _shift_search(
-            t, points[left], index, settings.threshold, settings.loose, settings.significance
+            t,
+            left_points,
+            index,
+            settings.threshold,
+            settings.loose,
+            settings.significance,
         )
         if shifted is None:
             continue
-        cells = points[left | agree[j]]
+        cells = take_rows(points, left | agree[j])
         refit = shifted
         for _ in range(REFITS):
             refit = _refit(refit, cells, index, settings)
@@ -481,7 +489,9 @@ def _shift_search(
         offsets = shifts[:, 0] * width + shifts[:, 1]
         counts = np.zeros(offsets.size, dtype=np.int64)
         for start in range(0, at.size, _SHIFT_CHUNK):
-            counts += flat[at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]].sum(axis=0)
+            counts += flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]).sum(
+                axis=0
+            )
         return counts
 
     # every other shift first (a cell agrees within ``threshold``, so a part's peak is
@@ -514,12 +524,12 @@ def _refit(
     agree = index.occupied_agreement(moved, threshold)
     if not agree.any():
         return transform
-    pivot = moved[agree].mean(axis=0)
+    pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(swept, cells, index.nearest_points, gate=settings.loose)
     polished = polish_transform(
         fitted,
-        cells[index.occupied_agreement(fitted.apply(cells), threshold)],
+        take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),
         index.occupied_distance,
         threshold,
     )

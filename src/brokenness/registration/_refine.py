@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking.distance import sample_at
 
 __all__ = [
@@ -81,7 +82,7 @@ def edge_points(
     inner = (x > 0) & (x < w - 1) & (y > 0) & (y < h - 1)
     inner &= flat[np.maximum(at - 1, 0)] & flat[np.minimum(at + 1, last)]
     inner &= flat[np.maximum(at - w, 0)] & flat[np.minimum(at + w, last)]
-    return xy[~inner]
+    return take_rows(xy, ~inner)
 
 
 def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:

@@ -69,6 +69,7 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
@@ -510,7 +511,7 @@ class IFMIRegistrar:
         xy = _refine.edge_points(crop, cells)
         if xy.shape[0] > self.max_points:
             pick = np.linspace(0, xy.shape[0] - 1, self.max_points).round().astype(np.intp)
-            xy = xy[pick]
+            xy = take_rows(xy, pick)
         points = xy.astype(np.float64) + np.array([c0, r0], dtype=np.float64)
         coarse = _coarse(crop, cells, factor)
         for_rotation = coarse if rot_factor == factor else _coarse(crop, cells, rot_factor)
@@ -819,13 +820,16 @@ class IFMIRegistrar:
         Repetitive buildings (rows of equal rooms, long corridors) give several peaks of
         similar height; the true one is not always the highest, so more than one translation
         per rotation can be handed on to be scored on the cells.
+
+        The surface (a float32 temporary of the caller) is overwritten: each peak found is
+        masked out in it before the next is looked for.
         """
         # statistics of the surface from a fixed subsample (speed), shared by its peaks
         mean, std = cv2.meanStdDev(np.ascontiguousarray(surface[::4, ::4]))
         level = (float(mean[0, 0]), float(std[0, 0]))
         if count == 1:
             return [cls._peak(surface, level)]
-        work = np.array(surface, dtype=np.float32, copy=True)
+        work = surface  # masked in place: no copy of the surface
         low = float(work.min())
         rows, cols = work.shape
         out = []

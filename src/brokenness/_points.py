@@ -1,0 +1,51 @@
+"""Selecting rows of point arrays (shape ``(N, 2)``) and reading cells of grids at points, as
+the measure does thousands of times a call."""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["cells_at", "take_rows"]
+
+_T = TypeVar("_T", bound=np.generic)
+
+
+def take_rows(points: NDArray[_T], which: NDArray[np.bool_] | NDArray[np.integer]) -> NDArray[_T]:
+    """``points[which]``: the rows of ``points`` that a boolean mask or an array of row
+    indices selects, in the same order, by :meth:`numpy.ndarray.take`.
+
+    Parameters
+    ----------
+    points : ndarray, 2D
+        Points, one a row (``(x, y)``).
+    which : ndarray of bool or of integers, 1D
+        A mask of the rows (as long as ``points``), or the indices of the rows.
+
+    Returns
+    -------
+    ndarray
+        A new array of the selected rows, the type of ``points``.
+
+    Notes
+    -----
+    numpy's advanced indexing of the rows of an ``(N, 2)`` array costs several times what
+    ``take`` of the same rows costs (numpy 2.4, 13,000 points: 145 us with a mask, 116 us
+    with indices, against 15 us and 6 us), and the measure selects point sets thousands of
+    times a call.
+    """
+    index = np.flatnonzero(which) if which.dtype == np.bool_ else which
+    return points.take(index, axis=0)
+
+
+def cells_at(
+    grid: NDArray[_T], rows: NDArray[np.integer], cols: NDArray[np.integer]
+) -> NDArray[_T]:
+    """``grid[rows, cols]`` (the indices on the grid), read by flat index when the grid is
+    C-contiguous: numpy's indexing by rows and columns costs about three times a
+    :meth:`numpy.ndarray.take` of the flat indices (13,000 cells: 62 us against 19 us)."""
+    if not grid.flags.c_contiguous:
+        return grid[rows, cols]
+    return grid.reshape(-1).take(rows * grid.shape[1] + cols)
