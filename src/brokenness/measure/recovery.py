@@ -206,7 +206,7 @@ def _support(
             continue
         at = np.zeros(points.shape[0], dtype=bool)
         at[f.members] = True
-        support[at] = _share(f.transform, points, at, index, threshold, shape, radius, around)
+        support[at], _ = _share(f.transform, points, at, index, threshold, shape, radius, around)
     return support
 
 
@@ -219,24 +219,11 @@ def _share(
     shape: tuple[int, int],
     radius: int,
     around: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """At the cells ``at``, the share of the occupied cells around that agree under
-    ``transform`` (``around``: how many occupied cells there are around each cell)."""
-    return _share_agreeing(transform, points, at, index, threshold, shape, radius, around)[0]
-
-
-def _share_agreeing(
-    transform: RigidTransform,
-    points: NDArray[np.float64],
-    at: NDArray[np.bool_],
-    index: ReferenceIndex,
-    threshold: float,
-    shape: tuple[int, int],
-    radius: int,
-    around: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """:func:`_share`, and the cells (indices of ``points``, ascending) that agree under
-    ``transform`` in the box of the windows around the cells ``at`` (``at`` among them)."""
+    """At the cells ``at``, the share of the occupied cells around that agree under
+    ``transform`` (``around``: how many occupied cells there are around each cell), and the
+    cells (indices of ``points``, ascending) that agree under ``transform`` in the box of the
+    windows around the cells ``at`` (``at`` among them)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     ar, ac = rows[at], cols[at]
     box = _box(ar, ac, shape, radius)
@@ -762,7 +749,7 @@ class _Search:
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
         :data:`SUPPORT_SHARE` of the occupied cells around them agreeing too."""
-        share, agreeing = _share_agreeing(
+        share, agreeing = _share(
             transform,
             self.points,
             cells,
