@@ -243,7 +243,7 @@ def _window_counts(
 ) -> NDArray[np.float64]:
     """At the cells ``at``, how many ``which`` cells lie in the square window around them.
 
-    Only the box around ``at`` is counted (one integer box filter)."""
+    Only the box around ``at`` is counted (one integral image a band of rows)."""
     ar, ac = rows[at], cols[at]
     box = _box(ar, ac, shape, radius)
     inside = which & _inside(rows, cols, box)
