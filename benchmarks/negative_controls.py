@@ -93,6 +93,7 @@ def run_pair(
         partitions=len(res.partitions),
         largest_share=float(res.largest_fraction),
         contradiction=res.contradiction,
+        contradiction_bound=res.contradiction_bound,
         unassigned_share=float(res.unassigned_fraction),
         reason=res.reason,
         seconds=time.perf_counter() - t0,

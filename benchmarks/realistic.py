@@ -523,6 +523,7 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         degree=res.degree,
         reason=res.reason,
         contradiction=res.contradiction,
+        contradiction_bound=res.contradiction_bound,
         exact=res.degree == truth["expected_degree"],
         all_true=bool(res.measured) and all_partitions_true(found, truths, labels),
         partitions_true=all_partitions_true(found, truths, labels),

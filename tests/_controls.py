@@ -14,6 +14,10 @@ same thing:
   partitions of at least 5 % each (bumps after the paper's model, some pure shifts), drawn in
   its own frame (turned and shifted), cropped, three-state, with the true transform of every
   partition (map cell -> reference cell) and the label image.
+- :func:`broken_simulated_maps`: a simulated building broken into 4 partitions whose free
+  space overlaps in the map's frame (case ``sim_d3_s17`` of the benchmark's fresh set), which
+  the contradiction test refused ("not the same place?") while free space was charged to the
+  nearest wall's partition alone.
 
 Each fixture takes well under 5 s to build (the Orebro log is read once per process).
 """
@@ -41,6 +45,7 @@ __all__ = [
     "BrokenCase",
     "Control",
     "broken_real_log_maps",
+    "broken_simulated_maps",
     "negative_controls",
     "orebro_map",
 ]
@@ -131,3 +136,24 @@ def broken_real_log_maps() -> list[BrokenCase]:
             )
         )
     return out
+
+
+def _drawn(name: str, case: Case) -> BrokenCase:
+    drawn = draw_case(case)
+    if drawn is None:  # pragma: no cover - the draws are fixed by the seed
+        raise RuntimeError(f"{name}: no draw fitted")
+    return BrokenCase(
+        name,
+        drawn.map,
+        drawn.reference,
+        case.degree,
+        drawn.truths(),
+        drawn.labels,
+        list(drawn.info["shares"]),
+    )
+
+
+def broken_simulated_maps() -> list[BrokenCase]:
+    """A simulated building at 5 cm, degree 3, in its own frame (see the module docstring)."""
+    case = Case("sim", 3, 17, 0.05, 0.05, "run")
+    return [_drawn("simulated degree 3 (seed 17, 5 cm, own frame)", case)]

@@ -309,7 +309,7 @@ def _compute(
             break
         found = _tested(again, points, working, index, settings, rivals, around)
     del whole, around  # the prepared reference (its distance map): no registration from here on
-    reason, map_ratio, ratios = _judge(found, points, working, index, settings)
+    reason, map_ratio, map_bound, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
         found, points, working, to_working, original, ref, index
     )
@@ -357,6 +357,7 @@ def _compute(
         measured=reason is None,
         reason=reason,
         contradiction=map_ratio,
+        contradiction_bound=map_bound,
     )
 
 
@@ -438,11 +439,12 @@ def _judge(
     working: OccupancyMap,
     index: ReferenceIndex,
     settings: Settings,
-) -> tuple[str | None, float | None, list[float | None]]:
+) -> tuple[str | None, float | None, float | None, list[float | None]]:
     """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`).
 
     Returns why the map is not measured (``None`` if it is), the whole map's ratio (observed
-    free-space contradiction over the chance rate) and each partition's, largest first (as
+    free-space contradiction over what chance would give), its upper bound (``None`` if it
+    cannot be bounded) and each partition's ratio, largest first (as
     :func:`assemble` sorts them). The map is measured when the upper bound of its ratio, at
     the stopping rule's significance, is at most :data:`MAP_RATIO`, and so is the upper bound
     of the converse ratio, the map's walls in the reference's clear free space
@@ -453,9 +455,10 @@ def _judge(
             "no part of the map agrees with the reference under any transform found "
             "(registration failed, or not the same place?)",
             None,
+            None,
             [],
         )
-    evidence = contradiction(found, points, working, index, settings.threshold)
+    evidence = contradiction(found, points, working, index, settings.threshold, observers=True)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     ratios = [evidence.ratio(i) for i in order]
     ratio = evidence.ratio()
@@ -487,7 +490,7 @@ def _judge(
                 "of the reference's place): most of the map is explained by no partition; "
                 "not the same place?"
             )
-    return reason, ratio, ratios
+    return reason, ratio, (upper if math.isfinite(upper) else None), ratios
 
 
 def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> BrokennessOptions:

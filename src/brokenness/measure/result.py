@@ -119,9 +119,15 @@ class BrokennessResult:
     reason : str or None
         Why the degree was not measured (``None`` when it was).
     contradiction : float or None
-        The whole map's free-space contradiction over the chance rate, over every partition
-        the recursion found (:mod:`brokenness.measure.evidence`); above
-        :data:`~brokenness.measure.evidence.MAP_RATIO` the map is not measured.
+        The whole map's free-space contradiction over what chance would give, every clear
+        free cell counted over its observers (the partitions found whose walls are about as
+        near to it as the nearest: :mod:`brokenness.measure.evidence`); when its upper bound
+        is above :data:`~brokenness.measure.evidence.MAP_RATIO` the map is not measured.
+    contradiction_bound : float or None
+        That upper bound (a Poisson bound on the contradicting cells at the stopping rule's
+        significance, over what chance would give): the number the measured/not measured
+        decision rests on. ``None`` when there are no partitions or too little free space
+        to bound it.
     """
 
     degree: int | None
@@ -135,6 +141,7 @@ class BrokennessResult:
     measured: bool = True
     reason: str | None = None
     contradiction: float | None = None
+    contradiction_bound: float | None = None
 
     @property
     def unassigned_fraction(self) -> float:
@@ -158,6 +165,7 @@ class BrokennessResult:
             "degree": self.degree,
             "reason": self.reason,
             "contradiction": self.contradiction,
+            "contradiction_bound": self.contradiction_bound,
             "occupied_cells": self.occupied_cells,
             "unassigned_cells": self.unassigned_cells,
             "unassigned_fraction": self.unassigned_fraction,
