@@ -177,6 +177,29 @@ def test_free_space_is_charged_only_when_no_observer_explains_it():
     assert both.expected < both.observed * both.chance
 
 
+def test_observers_of_a_large_map_are_found_on_coarser_blocks():
+    """The same room drawn 24 times larger (its free space sampled every 4th cell or more
+    sparsely, the partitions' distances measured on blocks of about that size): the
+    misplaced inner wall's free cells are again explained by the outer walls' partition."""
+    room, _, _, _, _ = _room_in_two()
+    big = OccupancyMap(np.kron(room.states, np.ones((24, 24), np.int8)))
+    index = ReferenceIndex.build(big)
+    points = cell_points(big.occupied)
+    x, y = points[:, 0], points[:, 1]
+    inner = np.flatnonzero((x >= 70 * 24) & (x < 71 * 24) & (y >= 11 * 24) & (y < 60 * 24))
+    rest = np.setdiff1d(np.arange(points.shape[0]), inner)
+    moved = RigidTransform(0.0, 30.0 * 24, 0.0)
+    two = [Found(RigidTransform(), rest, 1.0, 0.0), Found(moved, inner, 1.0, 0.0)]
+    nearest = contradiction(two, points, big, index, 2.0)
+    both = contradiction(two, points, big, index, 2.0, observers=True)
+    assert both.stride >= 4
+    assert nearest.contradicting[1] > 10 and nearest.ratio() > 0.05
+    assert both.unexplained < nearest.contradicting[1] / 2
+    assert both.ratio() < nearest.ratio() / 2
+    aligned = [Found(RigidTransform(), rest, 1.0, 0.0), Found(RigidTransform(), inner, 1.0, 0.0)]
+    assert contradiction(aligned, points, big, index, 2.0, observers=True).unexplained == 0
+
+
 # -- the benchmark's fixtures (tests/_controls.py): controls and heavily broken real maps ------
 def _true_matches(result, case, tolerance: float = 3.0) -> int:
     """How many found partitions match a distinct true part: one to one, each putting the

@@ -329,20 +329,47 @@ def _observer_reach(
     k: int,
 ) -> NDArray[np.bool_]:
     """``(k, n)``: partition ``j`` has walls within :data:`OBSERVER_REACH` times the
-    distance ``wall_distance`` of the nearest wall of cell ``i`` (on the grid of 2 x 2
-    blocks; one distance transform a partition, compared at the cells only)."""
+    distance of the nearest wall of cell ``i``.
+
+    Distances are measured on the grid of 2 x 2 blocks (``wall_distance``: the nearest wall
+    of every block), one distance transform a partition, compared at the cells only. When
+    the clear cells are sampled more sparsely than every third cell (a large map), the
+    partitions' distances are measured on blocks of ``stride // 2`` of those blocks (no
+    coarser than the sampling step), and the nearest wall's distance on the same blocks: the
+    cost then follows the samples, not the grid.
+    """
     rows, cols = np.divmod(clear, sub_width)
-    at = (rows * stride // 2) * block_owner.shape[1] + cols * stride // 2
-    limit = OBSERVER_REACH * wall_distance.reshape(-1).take(at)
-    reach = np.zeros((k, clear.size), dtype=bool)
+    by, bx = rows * stride // 2, cols * stride // 2  # the cells' 2 x 2 blocks
+    group = max(1, stride // 2)
+    if group == 1:
+        at = by * block_owner.shape[1] + bx
+        limit = OBSERVER_REACH * wall_distance.reshape(-1).take(at)
+        reach = np.zeros((k, clear.size), dtype=bool)
+        for j in range(k):
+            elsewhere = block_owner != j
+            if elsewhere.all():
+                continue
+            d = cv2.distanceTransform(elsewhere.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+            del elsewhere
+            reach[j] = d.reshape(-1).take(at) <= limit
+        return reach
+    ys, xs = np.nonzero(block_owner >= 0)
+    wall_owner = block_owner[ys, xs]
+    ys //= group
+    xs //= group
+    shape = (-(-block_owner.shape[0] // group), -(-block_owner.shape[1] // group))
+    at = (by // group) * shape[1] + bx // group
+    distance = np.full((k, clear.size), np.inf, dtype=np.float32)
     for j in range(k):
-        elsewhere = block_owner != j
-        if elsewhere.all():
+        mine = wall_owner == j
+        if not mine.any():
             continue
-        d = cv2.distanceTransform(elsewhere.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-        del elsewhere
-        reach[j] = d.reshape(-1).take(at) <= limit
-    return reach
+        elsewhere = np.ones(shape, dtype=np.uint8)
+        elsewhere[ys[mine], xs[mine]] = 0
+        d = cv2.distanceTransform(elsewhere, cv2.DIST_L2, cv2.DIST_MASK_5)
+        distance[j] = d.reshape(-1).take(at)
+    limit = OBSERVER_REACH * distance.min(axis=0)
+    return distance <= limit
 
 
 @dataclass(frozen=True)
