@@ -261,7 +261,9 @@ def contradiction(
     owners_of_blocks = block_owner[is_block]
     reach = None  # with one partition, its walls are every cell's only observer
     if observers and k > 1:
-        reach = _observer_reach(block_owner, wall_distance, clear, sub_width, stride, k)
+        distance = np.asarray(wall_distance, dtype=np.float32)  # no copy (typed for mypy)
+        reach = _observer_reach(block_owner, distance, clear, sub_width, stride, k)
+        del distance
     del block_owner, is_block, wall_distance
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
@@ -338,11 +340,15 @@ def _observer_reach(
     coarser than the sampling step), and the nearest wall's distance on the same blocks: the
     cost then follows the samples, not the grid.
     """
-    rows, cols = np.divmod(clear, sub_width)
-    by, bx = rows * stride // 2, cols * stride // 2  # the cells' 2 x 2 blocks
     group = max(1, stride // 2)
+    rows, cols = np.divmod(clear, sub_width)
+    rows *= stride  # in place: the cells' 2 x 2 blocks, then the reach grid's blocks
+    rows //= 2 * group
+    cols *= stride
+    cols //= 2 * group
     if group == 1:
-        at = by * block_owner.shape[1] + bx
+        at = rows * block_owner.shape[1] + cols
+        del rows, cols
         limit = OBSERVER_REACH * wall_distance.reshape(-1).take(at)
         reach = np.zeros((k, clear.size), dtype=bool)
         for j in range(k):
@@ -358,7 +364,8 @@ def _observer_reach(
     ys //= group
     xs //= group
     shape = (-(-block_owner.shape[0] // group), -(-block_owner.shape[1] // group))
-    at = (by // group) * shape[1] + bx // group
+    at = rows * shape[1] + cols
+    del rows, cols
     distance = np.full((k, clear.size), np.inf, dtype=np.float32)
     for j in range(k):
         mine = wall_owner == j
