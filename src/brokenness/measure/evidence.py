@@ -34,7 +34,9 @@ one does. The chance of that for free space dropped at random is ``q ** m`` for 
 ``m`` such observers (their transforms differ, so their placements are taken as independent
 draws); the sum over the cells is the count chance would give, and the ratio of the
 observed count to it decides whether the map is of the reference's place
-(:data:`MAP_RATIO`). With one partition it is the plain rate over ``q``.
+(:data:`MAP_RATIO`). With one partition it is the plain rate over ``q``. On a large map,
+whose clear cells are sampled every ``stride`` cells, the observers are found on blocks of
+about ``stride`` cells (no coarser than the sampling), so that the cost follows the samples.
 
 Per partition the rate (each cell charged to its nearest wall's partition) is reported, not
 judged: the free space around a small partition is mostly seen from the scans of other
