@@ -116,6 +116,9 @@ def test_compute_summary_states_conventions_and_is_not_cut_when_piped():
     assert "…" not in done.stdout
     assert "+ = clockwise on screen" in done.stdout and "+ = counter-clockwise" in done.stdout
     assert "(3 partitions," in done.stdout
+    # the evidence the degree rests on, with its limit
+    assert "evidence: the map's free space crosses reference walls at " in done.stdout
+    assert "(measured when at most 50 %)" in done.stdout
     assert (
         subprocess.run(
             [

@@ -300,6 +300,22 @@ def _write_json(path: Path, record: dict[str, Any]) -> None:
     atomic_write_text(path, json.dumps(record, indent=2) + "\n")
 
 
+def _evidence_line(result: BrokennessResult) -> str:
+    """The free-space evidence the measured degree rests on, and its limit (one line)."""
+    from ..measure.evidence import MAP_RATIO
+
+    def percent(share: float) -> str:
+        return f"{100 * share:.1f} %" if share < 0.1 else f"{100 * share:.0f} %"
+
+    ratio, bound = result.contradiction, result.contradiction_bound
+    seen = "too few free cells for a rate" if ratio is None else f"{percent(ratio)} of chance"
+    upper = "" if bound is None else f", at most {percent(bound)}"
+    return (
+        f"evidence: the map's free space crosses reference walls at {seen}{upper} "
+        f"(measured when at most {percent(MAP_RATIO)})"
+    )
+
+
 def _print_summary(
     result: BrokennessResult, m: OccupancyMap, ref: OccupancyMap, *, verbose: bool = False
 ) -> None:
@@ -345,6 +361,7 @@ def _print_summary(
         f"unassigned: {result.unassigned_cells} of {result.occupied_cells} occupied cells "
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
+    out.print(_evidence_line(result))
     note = "rot°/shift (cells): map cells onto reference cells, y down, + = clockwise on screen"
     if metres:
         note += "; world rot°/shift (m): ROS world frames, y up, + = counter-clockwise"
