@@ -15,9 +15,8 @@ same thing:
   its own frame (turned and shifted), cropped, three-state, with the true transform of every
   partition (map cell -> reference cell) and the label image.
 - :func:`broken_simulated_maps`: a simulated building broken into 4 partitions whose free
-  space overlaps in the map's frame (case ``sim_d3_s17`` of the benchmark's fresh set), which
-  the contradiction test refused ("not the same place?") while free space was charged to the
-  nearest wall's partition alone.
+  space overlaps in the map's frame (case ``sim_d3_s17`` of the benchmark's fresh set): its
+  parts are all found, and the contradiction test refuses the degree ("not the same place?").
 
 Each fixture takes well under 5 s to build (the Orebro log is read once per process).
 """

@@ -152,54 +152,6 @@ def test_the_walls_that_bound_the_free_space_own_it():
     assert int(whole.counted.sum()) == pytest.approx(np.count_nonzero(clear), rel=0.05)
 
 
-def test_free_space_is_charged_only_when_no_observer_explains_it():
-    """A misplaced partition (the inner wall, moved) owns the free cells nearest to it, but
-    the outer walls' partition, about as near, saw them free too: charged to the nearest wall
-    alone they contradict; over their observers they do not. With one partition the two
-    counts are the same."""
-    room, index, points, inner, rest = _room_in_two()
-    every = [Found(RigidTransform(), np.arange(points.shape[0]), 1.0, 0.0)]
-    plain = contradiction(every, points, room, index, 2.0)
-    observed = contradiction(every, points, room, index, 2.0, observers=True)
-    assert (observed.observed, observed.unexplained) == (plain.observed, plain.unexplained)
-    assert observed.expected == pytest.approx(plain.expected)
-    moved = RigidTransform(0.0, 30.0, 0.0)
-    two = [Found(RigidTransform(), rest, 1.0, 0.0), Found(moved, inner, 1.0, 0.0)]
-    nearest = contradiction(two, points, room, index, 2.0)
-    both = contradiction(two, points, room, index, 2.0, observers=True)
-    assert nearest.contradicting[1] > 10 and nearest.ratio() > 0.05
-    assert both.unexplained < nearest.contradicting[1] / 2
-    assert both.ratio() < nearest.ratio() / 2
-    # per partition the counts are the nearest wall's, with or without observers
-    np.testing.assert_array_equal(both.counted, nearest.counted)
-    np.testing.assert_array_equal(both.contradicting, nearest.contradicting)
-    # a cell with two observers on known cells is a chance contradiction with q ** 2
-    assert both.expected < both.observed * both.chance
-
-
-def test_observers_of_a_large_map_are_found_on_coarser_blocks():
-    """The same room drawn 24 times larger (its free space sampled every 4th cell or more
-    sparsely, the partitions' distances measured on blocks of about that size): the
-    misplaced inner wall's free cells are again explained by the outer walls' partition."""
-    room, _, _, _, _ = _room_in_two()
-    big = OccupancyMap(np.kron(room.states, np.ones((24, 24), np.int8)))
-    index = ReferenceIndex.build(big)
-    points = cell_points(big.occupied)
-    x, y = points[:, 0], points[:, 1]
-    inner = np.flatnonzero((x >= 70 * 24) & (x < 71 * 24) & (y >= 11 * 24) & (y < 60 * 24))
-    rest = np.setdiff1d(np.arange(points.shape[0]), inner)
-    moved = RigidTransform(0.0, 30.0 * 24, 0.0)
-    two = [Found(RigidTransform(), rest, 1.0, 0.0), Found(moved, inner, 1.0, 0.0)]
-    nearest = contradiction(two, points, big, index, 2.0)
-    both = contradiction(two, points, big, index, 2.0, observers=True)
-    assert both.stride >= 4
-    assert nearest.contradicting[1] > 10 and nearest.ratio() > 0.05
-    assert both.unexplained < nearest.contradicting[1] / 2
-    assert both.ratio() < nearest.ratio() / 2
-    aligned = [Found(RigidTransform(), rest, 1.0, 0.0), Found(RigidTransform(), inner, 1.0, 0.0)]
-    assert contradiction(aligned, points, big, index, 2.0, observers=True).unexplained == 0
-
-
 # -- the benchmark's fixtures (tests/_controls.py): controls and heavily broken real maps ------
 def _true_matches(result, case, tolerance: float = 3.0) -> int:
     """How many found partitions match a distinct true part: one to one, each putting the
@@ -239,15 +191,20 @@ def test_heavily_broken_real_log_maps_get_only_true_partitions():
         assert case.expected_degree - 3 <= result.degree <= case.expected_degree, case.name
 
 
-def test_a_broken_map_whose_free_space_overlaps_is_measured():
+def test_a_map_whose_parts_overlap_heavily_is_refused_rather_than_misread():
     """Four partitions of a simulated building whose free space overlaps in the map's frame:
-    charged to the nearest wall's partition alone, the free space crossed the reference's
-    walls at 0.54 of the chance rate (not measured); over its observers it is measured, and
-    every part is found at its true place."""
+    every part is found at its true place, but charged to its nearest wall's partition the
+    free space crosses the reference's walls at about half the chance rate, and the upper
+    bound is above the limit: the degree is refused, with the free-space reason (the price of
+    the test's margin against maps of other places; README, "What session 13 changed")."""
     from _controls import broken_simulated_maps
 
     for case in broken_simulated_maps():
-        result = compute_brokenness(case.map, case.reference)
-        assert result.measured, (case.name, result.reason)
-        assert result.degree == case.expected_degree, case.name
+        with pytest.warns(brokenness.NothingFoundWarning, match="not measured"):
+            result = compute_brokenness(case.map, case.reference)
+        assert not result.measured and result.degree is None, case.name
+        assert "free space crosses the reference's walls" in result.reason, case.name
+        assert result.contradiction is not None and result.contradiction_bound is not None
+        assert result.contradiction < result.contradiction_bound
+        assert result.contradiction_bound > MAP_RATIO
         assert _true_matches(result, case) == len(case.truths), case.name

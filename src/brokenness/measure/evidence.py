@@ -20,25 +20,9 @@ This module measures that, once the partitions are known:
 * the *chance rate* ``q`` is the share of the known reference cells that are occupied: the
   contradiction rate of free space dropped at random on the reference.
 
-:func:`contradiction` returns, per partition, the contradicting and the counted cells.
-
-For the whole map (``observers=True``) a free cell is not charged to its nearest wall's
-partition alone. The free space of a broken map is the union of its partitions', and where
-partitions overlap in the map's frame the nearest wall is often another part's: a heavily
-broken map of the right place (degree 7-8) was charged 0.45-0.65 of the chance rate that way,
-as much as maps of other places. So every partition whose walls are at most
-:data:`OBSERVER_REACH` times as far as the nearest wall is a possible *observer* of the cell
-(the scan that saw it free may be any of theirs); the cell *contradicts* only when every
-observer under which it lands on a known reference cell puts it on a wall, and it counts when
-one does. The chance of that for free space dropped at random is ``q ** m`` for a cell with
-``m`` such observers (their transforms differ, so their placements are taken as independent
-draws); the sum over the cells is the count chance would give, and the ratio of the
-observed count to it decides whether the map is of the reference's place
-(:data:`MAP_RATIO`). With one partition it is the plain rate over ``q``. On a large map,
-whose clear cells are sampled every ``stride`` cells, the observers are found on blocks of
-about ``stride`` cells (no coarser than the sampling), so that the cost follows the samples.
-
-Per partition the rate (each cell charged to its nearest wall's partition) is reported, not
+:func:`contradiction` returns, per partition and for the whole map, the contradicting and the
+counted cells. The ratio of the observed rate to ``q`` over the whole map decides whether the
+map is of the reference's place (:data:`MAP_RATIO`). Per partition it is reported, not
 judged: the free space around a small partition is mostly seen from the scans of other
 partitions (a broken map's free space is one union), so a true 4 % partition of a simulated
 map was measured at 1.19 times the chance rate.
@@ -58,27 +42,15 @@ from .._points import cells_at, take_rows
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import DistanceMap, beyond
-from ..transform import RigidTransform
 from .partitions import Found, owners
 from .views import isolated_points
 
-__all__ = [
-    "MAP_RATIO",
-    "OBSERVER_REACH",
-    "Contradiction",
-    "WallContradiction",
-    "contradiction",
-    "wall_contradiction",
-]
+__all__ = ["MAP_RATIO", "Contradiction", "WallContradiction", "contradiction", "wall_contradiction"]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
 #: the chance rate, at the significance of the stopping rule (:meth:`Contradiction.upper_ratio`;
 #: see the module docstring and the README for how it was chosen).
 MAP_RATIO = 0.5
-#: Partitions whose (non-isolated) walls are at most this many times as far from a clear free
-#: cell as the nearest wall are its possible observers (see the module docstring and the
-#: README for how it was chosen).
-OBSERVER_REACH = 2.0
 #: A rate is judged only when chance alone would put at least this many of its cells on
 #: walls (fewer cells cannot tell a rate from the chance rate).
 MIN_EXPECTED = 10.0
@@ -124,32 +96,18 @@ class Contradiction:
     stride : int
         The clear free cells of every ``stride``-th row and column were looked up (counts are
         of those).
-    observed : int
-        Whole map: clear free cells that some observer puts on a known reference cell.
-    unexplained : int
-        Whole map: those that every such observer puts on an occupied reference cell.
-    expected : float
-        Whole map: what chance would give for ``unexplained`` (the sum of ``q ** m`` over the
-        observed cells, ``m`` their observers on known cells).
     """
 
     counted: NDArray[np.int64]
     contradicting: NDArray[np.int64]
     chance: float
     stride: int
-    observed: int = 0
-    unexplained: int = 0
-    expected: float = 0.0
 
     def ratio(self, i: int | None = None) -> float | None:
         """Observed rate over the chance rate, for partition ``i`` or (``None``) the whole
-        map (its observers' count over chance's); ``None`` when too few cells are counted to
-        tell (:data:`MIN_EXPECTED`)."""
-        if i is None:
-            if self.expected < MIN_EXPECTED:
-                return None
-            return self.unexplained / self.expected
-        n, x = int(self.counted[i]), int(self.contradicting[i])
+        map; ``None`` when too few cells are counted to tell (:data:`MIN_EXPECTED`)."""
+        n = int(self.counted.sum() if i is None else self.counted[i])
+        x = int(self.contradicting.sum() if i is None else self.contradicting[i])
         if self.chance <= 0.0 or n * self.chance < MIN_EXPECTED:
             return None
         return (x / n) / self.chance
@@ -159,13 +117,15 @@ class Contradiction:
 
         The contradicting cells are counted as a Poisson count ``X``; its upper bound is
         ``X + z sqrt(X + 1) + z^2 / 3`` (a close one-sided bound also for small counts), over
-        the count chance would give (:attr:`expected`). ``inf`` when nothing is counted: a
-        map that shows no free space on the reference cannot show that it fits there.
+        the count chance would give (``n q``). ``inf`` when nothing is counted: a map that
+        shows no free space on the reference cannot show that it fits there.
         """
-        if self.expected <= 0.0:
+        n = int(self.counted.sum())
+        x = int(self.contradicting.sum())
+        expected = n * self.chance
+        if expected <= 0.0:
             return math.inf
-        x = self.unexplained
-        return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / self.expected
+        return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
 
 
 def contradiction(
@@ -174,7 +134,6 @@ def contradiction(
     working: OccupancyMap,
     index: ReferenceIndex,
     threshold: float,
-    observers: bool = False,
 ) -> Contradiction:
     """How often the map's clear free space lands on reference walls, per partition.
 
@@ -191,10 +150,6 @@ def contradiction(
     threshold : float
         Agreement threshold ``c`` (cells); free cells within ``2 c`` of a map wall are not
         counted.
-    observers : bool, optional
-        Also count the whole map over each cell's observers (see the module docstring; one
-        distance transform a partition). If False, the whole map's counts are the sums of
-        the partitions' (each cell charged to its nearest wall's partition, ``m = 1``).
 
     Returns
     -------
@@ -254,131 +209,35 @@ def contradiction(
     block_owner = np.full(coarse_shape, -1, dtype=np.int16)
     block_owner[py[is_source] // 2, px[is_source] // 2] = owner[is_source]
     is_block = block_owner >= 0
-    wall_distance, nearest = cv2.distanceTransformWithLabels(
+    nearest = cv2.distanceTransformWithLabels(
         np.logical_not(is_block).view(np.uint8),
         cv2.DIST_L2,
         cv2.DIST_MASK_5,
         labelType=cv2.DIST_LABEL_PIXEL,
-    )  # labels number the source blocks 1.. row-major, as boolean indexing lists them
+    )[1]  # labels number the source blocks 1.. row-major, as boolean indexing lists them
     owners_of_blocks = block_owner[is_block]
-    reach = None  # with one partition, its walls are every cell's only observer
-    if observers and k > 1:
-        distance = np.asarray(wall_distance, dtype=np.float32)  # no copy (typed for mypy)
-        reach = _observer_reach(block_owner, distance, clear, sub_width, stride, k)
-        del distance
-    del block_owner, is_block, wall_distance
+    del block_owner, is_block
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
-    observed = unexplained = 0
-    expected = 0.0
+    h, w = ref_states.shape
     for start in range(0, clear.size, _CHUNK):  # bounded temporaries, whatever the map
         rows, cols = np.divmod(clear[start : start + _CHUNK], sub_width)
         rows *= stride
         cols *= stride
         owners = owners_of_blocks[nearest[rows // 2, cols // 2] - 1]
         pts = np.column_stack([cols + c0, rows + r0]).astype(np.float64)
-        if reach is not None:  # on known cells / on walls, per observer
-            near = reach[:, start : start + _CHUNK]
-            near[owners, np.arange(owners.size)] = True  # the nearest wall's partition is one
-            known = np.zeros(near.shape, dtype=bool)
-            walls = np.zeros(near.shape, dtype=bool)
         for j, f in enumerate(found):
-            sel = owners == j if reach is None else near[j]
+            sel = owners == j
             if not sel.any():
                 continue
-            on_known, on_wall = _landing(f.transform, take_rows(pts, sel), ref_states, occupied_ref)
-            mine = owners[sel] == j
-            counted[j] += int(np.count_nonzero(on_known & mine))
-            contradicting[j] += int(np.count_nonzero(on_wall & mine))
-            if reach is not None:
-                known[j, sel], walls[j, sel] = on_known, on_wall
-        if reach is not None:
-            m = np.count_nonzero(known, axis=0)
-            seen = m > 0
-            observed += int(np.count_nonzero(seen))
-            unexplained += int(np.count_nonzero(seen & (walls == known).all(axis=0)))
-            expected += float(np.sum(chance ** m[seen].astype(np.float64)))
-    if reach is None:  # each cell charged to one partition: m = 1
-        observed, unexplained = int(counted.sum()), int(contradicting.sum())
-        expected = observed * chance
-    return Contradiction(counted, contradicting, chance, stride, observed, unexplained, expected)
-
-
-def _landing(
-    transform: RigidTransform,
-    pts: NDArray[np.float64],
-    ref_states: NDArray[np.int8],
-    occupied_ref: NDArray[np.bool_],
-) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    """Per point: lands on a known reference cell under ``transform``; on an occupied one."""
-    h, w = ref_states.shape
-    moved = np.rint(transform.apply(pts)).astype(np.intp)
-    x, y = moved[:, 0], moved[:, 1]
-    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-    on_known = np.zeros(pts.shape[0], dtype=bool)
-    on_wall = np.zeros(pts.shape[0], dtype=bool)
-    xi, yi = x[inside], y[inside]
-    known = cells_at(ref_states, yi, xi) != UNKNOWN
-    on_known[inside] = known
-    on_wall[inside] = known & cells_at(occupied_ref, yi, xi)
-    return on_known, on_wall
-
-
-def _observer_reach(
-    block_owner: NDArray[np.int16],
-    wall_distance: NDArray[np.float32],
-    clear: NDArray[np.intp],
-    sub_width: int,
-    stride: int,
-    k: int,
-) -> NDArray[np.bool_]:
-    """``(k, n)``: partition ``j`` has walls within :data:`OBSERVER_REACH` times the
-    distance of the nearest wall of cell ``i``.
-
-    Distances are measured on the grid of 2 x 2 blocks (``wall_distance``: the nearest wall
-    of every block), one distance transform a partition, compared at the cells only. When
-    the clear cells are sampled more sparsely than every third cell (a large map), the
-    partitions' distances are measured on blocks of ``stride // 2`` of those blocks (no
-    coarser than the sampling step), and the nearest wall's distance on the same blocks: the
-    cost then follows the samples, not the grid.
-    """
-    group = max(1, stride // 2)
-    rows, cols = np.divmod(clear, sub_width)
-    rows *= stride  # in place: the cells' 2 x 2 blocks, then the reach grid's blocks
-    rows //= 2 * group
-    cols *= stride
-    cols //= 2 * group
-    if group == 1:
-        at = rows * block_owner.shape[1] + cols
-        del rows, cols
-        limit = OBSERVER_REACH * wall_distance.reshape(-1).take(at)
-        reach = np.zeros((k, clear.size), dtype=bool)
-        for j in range(k):
-            elsewhere = block_owner != j
-            if elsewhere.all():
-                continue
-            d = cv2.distanceTransform(elsewhere.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-            del elsewhere
-            reach[j] = d.reshape(-1).take(at) <= limit
-        return reach
-    ys, xs = np.nonzero(block_owner >= 0)
-    wall_owner = block_owner[ys, xs]
-    ys //= group
-    xs //= group
-    shape = (-(-block_owner.shape[0] // group), -(-block_owner.shape[1] // group))
-    at = rows * shape[1] + cols
-    del rows, cols
-    distance = np.full((k, clear.size), np.inf, dtype=np.float32)
-    for j in range(k):
-        mine = wall_owner == j
-        if not mine.any():
-            continue
-        elsewhere = np.ones(shape, dtype=np.uint8)
-        elsewhere[ys[mine], xs[mine]] = 0
-        d = cv2.distanceTransform(elsewhere, cv2.DIST_L2, cv2.DIST_MASK_5)
-        distance[j] = d.reshape(-1).take(at)
-    limit = OBSERVER_REACH * distance.min(axis=0)
-    return distance <= limit
+            moved = np.rint(f.transform.apply(take_rows(pts, sel))).astype(np.intp)
+            x, y = moved[:, 0], moved[:, 1]
+            inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            x, y = x[inside], y[inside]
+            on_known = cells_at(ref_states, y, x) != UNKNOWN
+            counted[j] += int(np.count_nonzero(on_known))
+            contradicting[j] += int(np.count_nonzero(on_known & cells_at(occupied_ref, y, x)))
+    return Contradiction(counted, contradicting, chance, stride)
 
 
 @dataclass(frozen=True)

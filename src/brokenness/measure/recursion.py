@@ -458,7 +458,7 @@ def _judge(
             None,
             [],
         )
-    evidence = contradiction(found, points, working, index, settings.threshold, observers=True)
+    evidence = contradiction(found, points, working, index, settings.threshold)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     ratios = [evidence.ratio(i) for i in order]
     ratio = evidence.ratio()

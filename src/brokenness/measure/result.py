@@ -119,10 +119,10 @@ class BrokennessResult:
     reason : str or None
         Why the degree was not measured (``None`` when it was).
     contradiction : float or None
-        The whole map's free-space contradiction over what chance would give, every clear
-        free cell counted over its observers (the partitions found whose walls are about as
-        near to it as the nearest: :mod:`brokenness.measure.evidence`); when its upper bound
-        is above :data:`~brokenness.measure.evidence.MAP_RATIO` the map is not measured.
+        The whole map's free-space contradiction over the chance rate, every clear free
+        cell charged to the partition of its nearest wall (:mod:`brokenness.measure.evidence`);
+        when its upper bound is above :data:`~brokenness.measure.evidence.MAP_RATIO` the map
+        is not measured.
     contradiction_bound : float or None
         That upper bound (a Poisson bound on the contradicting cells at the stopping rule's
         significance, over what chance would give): the number the measured/not measured
