@@ -118,26 +118,17 @@ BROKEN_OREBRO = ((6, 5), (8, 3))
 
 def broken_real_log_maps() -> list[BrokenCase]:
     """The Orebro log at 0.1 m, degrees 6 and 8, in its own frame (see the module docstring)."""
-    out = []
-    for degree, seed in BROKEN_OREBRO:
-        drawn = draw_case(Case("orebro", degree, seed, 0.1, 0.1, "run"))
-        if drawn is None:  # pragma: no cover - the draws are fixed by the seed
-            raise RuntimeError(f"orebro degree {degree} seed {seed}: no draw fitted")
-        out.append(
-            BrokenCase(
-                f"orebro degree {degree} (seed {seed}, 0.1 m, own frame)",
-                drawn.map,
-                drawn.reference,
-                degree,
-                drawn.truths(),
-                drawn.labels,
-                list(drawn.info["shares"]),
-            )
+    return [
+        _drawn(
+            f"orebro degree {degree} (seed {seed}, 0.1 m, own frame)",
+            Case("orebro", degree, seed, 0.1, 0.1, "run"),
         )
-    return out
+        for degree, seed in BROKEN_OREBRO
+    ]
 
 
 def _drawn(name: str, case: Case) -> BrokenCase:
+    """The benchmark's case ``case`` drawn (map, reference, truths, labels), named ``name``."""
     drawn = draw_case(case)
     if drawn is None:  # pragma: no cover - the draws are fixed by the seed
         raise RuntimeError(f"{name}: no draw fitted")
