@@ -117,7 +117,7 @@ SETTINGS = Settings(
     min_cells=30,
     significance=6.0,
     max_partitions=16,
-    max_candidates=6,
+    max_candidates=12,
     uses_free=True,
     drop_isolated=True,
 )

@@ -43,7 +43,10 @@ class BrokennessOptions:
     max_partitions : int
         Upper bound on the number of partitions (default 16): the recursion always ends.
     max_candidates : int
-        Registration hypotheses examined per step (default 6).
+        Registration hypotheses examined per step (default 12; the recovery's searches
+        among suspect cells ask for twice as many). A search budget, not a test: the tests
+        a hypothesis must pass do not depend on it. See the README (Thresholds) for how
+        it was chosen.
     seed : int or None
         Seed of the random-walk registration (iFMI uses no randomness).
     registration_options : mapping
@@ -58,7 +61,7 @@ class BrokennessOptions:
     significance: float = 6.0
     merge_threshold: float | None = None
     max_partitions: int = 16
-    max_candidates: int = 6
+    max_candidates: int = 12
     seed: int | None = None
     registration_options: Mapping[str, Any] | tuple[tuple[str, Any], ...] = ()
 
