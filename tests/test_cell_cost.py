@@ -42,6 +42,25 @@ def test_isolated_points_match_the_box_filter(seed: int) -> None:
     np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_isolated_points_of_sparse_cells_in_any_order(seed: int) -> None:
+    # a box far larger than the cells (the sorted lookups, not the box filter), with cells
+    # on the box's edges, in clusters across rows and alone; row-major and shuffled
+    rng = np.random.default_rng(seed)
+    grid = np.zeros((300, 400), dtype=bool)
+    grid.flat[rng.choice(grid.size, 60, replace=False)] = True
+    grid[0, :3] = grid[-1, -3:] = grid[:2, -1] = True
+    for r, c in rng.integers(2, 290, size=(12, 2)):
+        grid[r : r + rng.integers(1, 4), c : c + rng.integers(1, 4)] = True
+    rows, cols = np.nonzero(grid)
+    assert grid.size > 64 * rows.size
+    expected = isolated_cells(grid)[rows, cols]
+    assert expected.any() and not expected.all()
+    np.testing.assert_array_equal(isolated_points(rows, cols), expected)
+    shuffle = rng.permutation(rows.size)
+    np.testing.assert_array_equal(isolated_points(rows[shuffle], cols[shuffle]), expected[shuffle])
+
+
 @pytest.mark.parametrize("drop_isolated", [False, True])
 def test_remainder_cells_are_the_occupied_cells_of_the_remainder(drop_isolated: bool) -> None:
     occ = _speckled(7)
