@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
@@ -10,7 +11,13 @@ import pytest
 
 from brokenness import OccupancyMap, load_map
 from brokenness.grid import OCCUPIED
-from brokenness.masking import cell_points, unmatched_reference, within_manhattan
+from brokenness.masking import (
+    ReferenceIndex,
+    cell_points,
+    unmatched_reference,
+    within_manhattan,
+)
+from brokenness.masking.distance import beyond, compact_distance_map, within
 from brokenness.measure.partitions import cell_components
 from brokenness.measure.views import (
     isolated_cells,
@@ -159,3 +166,27 @@ def test_prepared_reference_pools_its_packed_cells_at_any_factor() -> None:
         np.testing.assert_array_equal(
             IFMIRegistrar._level(prepared, factor), coarse_indicator(crop, factor)
         )
+
+
+@pytest.mark.parametrize("compact", [False, True])
+def test_reference_counts_from_the_histogram_match_the_grid_wide_counts(compact: bool) -> None:
+    # known cells near walls and free cells beyond a limit, from one histogram of the free
+    # cells' distances, against the counts of the whole grid (both kinds of distance map)
+    rng = np.random.default_rng(3)
+    states = rng.choice(np.array([-1, 0, 1], np.int8), size=(700, 600), p=[0.3, 0.69, 0.01])
+    states[:, :400][states[:, :400] == 1] = 0  # distances past the histogram's last bin
+    states[:300, :40] = -1
+    ref = OccupancyMap(states)
+    index = ReferenceIndex.build(ref)
+    if compact:
+        index = ReferenceIndex(ref, compact_distance_map(ref.occupied), index.occupied_points)
+    distance = index.occupied_distance
+    assert distance.dtype == (np.uint16 if compact else np.float32)
+    assert float(distance.max()) > 300
+    known = states != -1
+    assert index.known_count == np.count_nonzero(known)
+    for t in (-1.0, 0.0, 0.5, 1.0, 2.0, 3.7, 120.0, 254.0, 254.5, 255.0, 300.0, math.inf):
+        near = np.count_nonzero(known & within(distance, t))
+        assert index.chance_agreement(t) == near / np.count_nonzero(known), t
+        clear = np.count_nonzero((states == 0) & beyond(distance, t))
+        assert index.free_beyond_count(t) == clear, t
