@@ -25,7 +25,7 @@ from brokenness.measure.views import (
     remainder_cells,
     remainder_states,
 )
-from brokenness.registration import IFMIRegistrar
+from brokenness.registration import IFMIRegistrar, _refine
 from brokenness.registration._spectral import coarse_indicator
 from brokenness.registration.base import OccupiedCells
 
@@ -190,3 +190,32 @@ def test_reference_counts_from_the_histogram_match_the_grid_wide_counts(compact:
         assert index.chance_agreement(t) == near / np.count_nonzero(known), t
         clear = np.count_nonzero((states == 0) & beyond(distance, t))
         assert index.free_beyond_count(t) == clear, t
+
+
+@pytest.mark.parametrize("with_points", [False, True])
+def test_reference_prepared_from_a_crop_of_cells_is_the_same(with_points: bool) -> None:
+    # a tight crop with an offset (its cells listed or not): the same distance map, pooled
+    # images and packed cells as from the grid of states
+    occ = np.zeros((300, 260), dtype=bool)
+    occ[40:200, 30:200] = _speckled(4, (160, 170))
+    states = np.where(occ, 1, 0).astype(np.int8)
+    rows, cols = np.nonzero(occ)
+    r0, c0 = int(rows.min()), int(cols.min())
+    crop = occ[r0 : rows.max() + 1, c0 : cols.max() + 1].copy()
+    points = cell_points(crop).astype(np.int32) if with_points else None
+    reg = IFMIRegistrar()
+    a = reg.prepare_reference(states)
+    b = reg.prepare_reference(OccupiedCells(crop, (c0, r0), occ.shape, points))
+    assert a.distance is not None and b.distance is not None
+    assert (a.offset, a.distance_offset, a.factor) == (b.offset, b.distance_offset, b.factor)
+    np.testing.assert_array_equal(a.distance, b.distance)
+    np.testing.assert_array_equal(a.crop, b.crop)
+    assert a.levels.keys() == b.levels.keys()
+    # ... and those of the grid-wide kernels: the erosion's outline, the pooled box
+    dc0, dr0 = a.distance_offset
+    window = occ[dr0 : dr0 + a.distance.shape[0], dc0 : dc0 + a.distance.shape[1]]
+    np.testing.assert_array_equal(b.distance, _refine.edge_distance_field(window))
+    box = occ[r0 : rows.max() + 1, c0 : cols.max() + 1]
+    for f in a.levels:
+        np.testing.assert_array_equal(a.levels[f], b.levels[f])
+        np.testing.assert_array_equal(b.levels[f], coarse_indicator(box, f))
