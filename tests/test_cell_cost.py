@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import cv2
@@ -10,7 +11,13 @@ import pytest
 
 from brokenness import OccupancyMap, load_map
 from brokenness.grid import OCCUPIED
-from brokenness.masking import cell_points, unmatched_reference, within_manhattan
+from brokenness.masking import (
+    ReferenceIndex,
+    cell_points,
+    unmatched_reference,
+    within_manhattan,
+)
+from brokenness.masking.distance import beyond, compact_distance_map, within
 from brokenness.measure.partitions import cell_components
 from brokenness.measure.views import (
     isolated_cells,
@@ -18,7 +25,7 @@ from brokenness.measure.views import (
     remainder_cells,
     remainder_states,
 )
-from brokenness.registration import IFMIRegistrar
+from brokenness.registration import IFMIRegistrar, _refine
 from brokenness.registration._spectral import coarse_indicator
 from brokenness.registration.base import OccupiedCells
 
@@ -40,6 +47,25 @@ def test_isolated_points_match_the_box_filter(seed: int) -> None:
     got = isolated_points(rows, cols)
     assert got.any() and not got.all()
     np.testing.assert_array_equal(got, expected)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_isolated_points_of_sparse_cells_in_any_order(seed: int) -> None:
+    # a box far larger than the cells (the sorted lookups, not the box filter), with cells
+    # on the box's edges, in clusters across rows and alone; row-major and shuffled
+    rng = np.random.default_rng(seed)
+    grid = np.zeros((300, 400), dtype=bool)
+    grid.flat[rng.choice(grid.size, 60, replace=False)] = True
+    grid[0, :3] = grid[-1, -3:] = grid[:2, -1] = True
+    for r, c in rng.integers(2, 290, size=(12, 2)):
+        grid[r : r + rng.integers(1, 4), c : c + rng.integers(1, 4)] = True
+    rows, cols = np.nonzero(grid)
+    assert grid.size > 64 * rows.size
+    expected = isolated_cells(grid)[rows, cols]
+    assert expected.any() and not expected.all()
+    np.testing.assert_array_equal(isolated_points(rows, cols), expected)
+    shuffle = rng.permutation(rows.size)
+    np.testing.assert_array_equal(isolated_points(rows[shuffle], cols[shuffle]), expected[shuffle])
 
 
 @pytest.mark.parametrize("drop_isolated", [False, True])
@@ -140,3 +166,56 @@ def test_prepared_reference_pools_its_packed_cells_at_any_factor() -> None:
         np.testing.assert_array_equal(
             IFMIRegistrar._level(prepared, factor), coarse_indicator(crop, factor)
         )
+
+
+@pytest.mark.parametrize("compact", [False, True])
+def test_reference_counts_from_the_histogram_match_the_grid_wide_counts(compact: bool) -> None:
+    # known cells near walls and free cells beyond a limit, from one histogram of the free
+    # cells' distances, against the counts of the whole grid (both kinds of distance map)
+    rng = np.random.default_rng(3)
+    states = rng.choice(np.array([-1, 0, 1], np.int8), size=(700, 600), p=[0.3, 0.69, 0.01])
+    states[:, :400][states[:, :400] == 1] = 0  # distances past the histogram's last bin
+    states[:300, :40] = -1
+    ref = OccupancyMap(states)
+    index = ReferenceIndex.build(ref)
+    if compact:
+        index = ReferenceIndex(ref, compact_distance_map(ref.occupied), index.occupied_points)
+    distance = index.occupied_distance
+    assert distance.dtype == (np.uint16 if compact else np.float32)
+    assert float(distance.max()) > 300
+    known = states != -1
+    assert index.known_count == np.count_nonzero(known)
+    for t in (-1.0, 0.0, 0.5, 1.0, 2.0, 3.7, 120.0, 254.0, 254.5, 255.0, 300.0, math.inf):
+        near = np.count_nonzero(known & within(distance, t))
+        assert index.chance_agreement(t) == near / np.count_nonzero(known), t
+        clear = np.count_nonzero((states == 0) & beyond(distance, t))
+        assert index.free_beyond_count(t) == clear, t
+
+
+@pytest.mark.parametrize("with_points", [False, True])
+def test_reference_prepared_from_a_crop_of_cells_is_the_same(with_points: bool) -> None:
+    # a tight crop with an offset (its cells listed or not): the same distance map, pooled
+    # images and packed cells as from the grid of states
+    occ = np.zeros((300, 260), dtype=bool)
+    occ[40:200, 30:200] = _speckled(4, (160, 170))
+    states = np.where(occ, 1, 0).astype(np.int8)
+    rows, cols = np.nonzero(occ)
+    r0, c0 = int(rows.min()), int(cols.min())
+    crop = occ[r0 : rows.max() + 1, c0 : cols.max() + 1].copy()
+    points = cell_points(crop).astype(np.int32) if with_points else None
+    reg = IFMIRegistrar()
+    a = reg.prepare_reference(states)
+    b = reg.prepare_reference(OccupiedCells(crop, (c0, r0), occ.shape, points))
+    assert a.distance is not None and b.distance is not None
+    assert (a.offset, a.distance_offset, a.factor) == (b.offset, b.distance_offset, b.factor)
+    np.testing.assert_array_equal(a.distance, b.distance)
+    np.testing.assert_array_equal(a.crop, b.crop)
+    assert a.levels.keys() == b.levels.keys()
+    # ... and those of the grid-wide kernels: the erosion's outline, the pooled box
+    dc0, dr0 = a.distance_offset
+    window = occ[dr0 : dr0 + a.distance.shape[0], dc0 : dc0 + a.distance.shape[1]]
+    np.testing.assert_array_equal(b.distance, _refine.edge_distance_field(window))
+    box = occ[r0 : rows.max() + 1, c0 : cols.max() + 1]
+    for f in a.levels:
+        np.testing.assert_array_equal(a.levels[f], b.levels[f])
+        np.testing.assert_array_equal(b.levels[f], coarse_indicator(box, f))

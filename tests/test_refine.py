@@ -145,3 +145,18 @@ def test_edge_points_are_the_outline_cells_in_row_order():
     wall[2:7, 1:8] = True  # a thick wall: its inside is no outline
     assert not (_refine.edge_points(wall)[:, None] == [[4, 4]]).all(axis=2).any()
     assert _refine.edge_points(np.zeros((3, 3), bool)).shape == (0, 2)
+
+
+def test_outline_distance_field_is_the_edge_distance_field() -> None:
+    # walls, a thick block and cells on the grid's border: the outline marked at the cells
+    # gives the field of the eroded grid, bit for bit
+    rng = np.random.default_rng(2)
+    occ = rng.random((90, 120)) < 0.01
+    occ[20, 10:100] = occ[30:80, 60] = True
+    occ[40:55, 15:40] = True
+    occ[0, :30] = occ[:, -1] = True
+    outline = _refine.edge_points(occ)
+    got = _refine.outline_distance_field(outline, occ.shape)
+    expected = _refine.edge_distance_field(occ)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got.view(np.uint32), expected.view(np.uint32))

@@ -8,6 +8,7 @@ step of the recursion (:class:`ReferenceIndex`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -17,9 +18,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from ..errors import MapError
-from ..grid import UNKNOWN, OccupancyMap
+from ..grid import FREE, UNKNOWN, OccupancyMap
 from .distance import (
     DistanceMap,
+    beyond,
     compact_distance_map,
     lookup_distance,
     manhattan_distance_map,
@@ -31,6 +33,7 @@ __all__ = [
     "ReferenceIndex",
     "ball_offsets",
     "cell_points",
+    "free_distance_histogram",
     "manhattan_ball",
     "unmatched_reference",
     "within_manhattan",
@@ -46,6 +49,9 @@ _LOOKUP_TABLE_CELLS = 4_000_000
 COMPACT_CELLS = 32_000_000
 #: Rows of a band of the grid-wide counts and masks (no temporary of the grid's size).
 _BAND_ROWS = 512
+#: Distances below this are told apart by :func:`free_distance_histogram` (its last bin holds
+#: every distance from it on).
+_HISTOGRAM_TOP = 255
 #: Manhattan balls of up to this many cells are cleared cell by cell (radius 3: 25 cells).
 _SCATTER_BALL = 25
 
@@ -187,10 +193,88 @@ class ReferenceIndex:
         cached = self._chance.get(threshold)
         if cached is not None:
             return cached
-        n_known, n_near = _known_and_near(self.reference.states, self.occupied_distance, threshold)
+        bound = _whole_bound(threshold)
+        if bound is None:  # beyond what the histogram tells apart
+            states, distance = self.reference.states, self.occupied_distance
+            n_known, n_near = _known_and_near(states, distance, threshold)
+        elif bound < 0:
+            n_known, n_near = self.known_count, 0
+        else:  # the occupied cells (at distance 0) and the free cells within the bound
+            n_known = self.known_count
+            n_near = self.occupied_points.shape[0] + int(self._free_histogram[: bound + 1].sum())
         value = 1.0 if n_known == 0 else float(n_near) / n_known
         self._chance[threshold] = value
         return value
+
+    @cached_property
+    def _free_histogram(self) -> NDArray[np.int64]:
+        """:func:`free_distance_histogram` of the reference (one pass, on first use)."""
+        return free_distance_histogram(self.reference.states, self.occupied_distance)
+
+    @property
+    def known_count(self) -> int:
+        """Number of known (occupied or free) reference cells."""
+        return self.occupied_points.shape[0] + int(self._free_histogram.sum())
+
+    def free_beyond_count(self, limit: float) -> int:
+        """Number of free reference cells farther than ``limit`` (Manhattan) from every
+        occupied one (``distance > limit``, as :func:`~brokenness.masking.distance.beyond`
+        counts them)."""
+        bound = _whole_bound(limit)
+        if bound is None:  # beyond what the histogram tells apart
+            return _free_beyond(self.reference.states, self.occupied_distance, limit)
+        return int(self._free_histogram[max(bound + 1, 0) :].sum())
+
+
+def free_distance_histogram(states: NDArray[np.int8], distance: DistanceMap) -> NDArray[np.int64]:
+    """How many free cells lie at each distance.
+
+    Parameters
+    ----------
+    states : ndarray of int8
+        A grid of cell states.
+    distance : ndarray of float32 or uint16
+        Finite whole-number distances of its cells (a Manhattan distance map), same shape.
+
+    Returns
+    -------
+    ndarray of int64, shape (256,)
+        Bin ``k`` counts the free cells at distance ``k``, the last bin those at 255 or more.
+        Counted in bands of rows (no temporary of the grid's size).
+    """
+    out = np.zeros(_HISTOGRAM_TOP + 1, dtype=np.int64)
+    bins, span = [_HISTOGRAM_TOP + 1], [0, _HISTOGRAM_TOP + 1]
+    # OpenCV counts in float32: whole numbers, exact for bands of fewer than 2**24 cells
+    rows = max(1, min(_BAND_ROWS, ((1 << 24) - 1) // max(states.shape[1], 1)))
+    for r in range(0, states.shape[0], rows):
+        free = states[r : r + rows] == FREE
+        # the distances saturated to one byte (whole numbers: exact below 255)
+        capped = cv2.convertScaleAbs(distance[r : r + rows])
+        hist = cv2.calcHist([capped], [0], free.view(np.uint8), bins, span)
+        out += hist.reshape(-1).astype(np.int64)
+    return out
+
+
+def _whole_bound(threshold: float) -> int | None:
+    """The largest whole distance within ``threshold`` (``floor``), when the histogram of
+    :func:`free_distance_histogram` tells it apart (``None`` otherwise, or if not finite)."""
+    if not math.isfinite(threshold):
+        return None
+    bound = math.floor(threshold)
+    return bound if bound < _HISTOGRAM_TOP else None
+
+
+def _free_beyond(states: NDArray[np.int8], distance: DistanceMap, limit: float) -> int:
+    """The free cells of ``states`` farther than ``limit`` in ``distance``, counted in bands
+    of rows."""
+    return sum(
+        int(
+            np.count_nonzero(
+                (states[r : r + _BAND_ROWS] == FREE) & beyond(distance[r : r + _BAND_ROWS], limit)
+            )
+        )
+        for r in range(0, states.shape[0], _BAND_ROWS)
+    )
 
 
 def _known_and_near(

@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 from .._points import cells_at, take_rows
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
-from ..masking.distance import DistanceMap, beyond
+from ..masking.distance import beyond
 from .partitions import Found, owners
 from .views import isolated_points
 
@@ -159,7 +159,7 @@ def contradiction(
     # byte a cell to the peak while the owners' distance transform below runs)
     ref_states = index.reference.states
     occupied_ref = index.occupied
-    n_known = _count_known(ref_states)
+    n_known = index.known_count
     chance = float(np.count_nonzero(occupied_ref)) / n_known if n_known else 0.0
     k = len(found)
     empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
@@ -311,7 +311,9 @@ def wall_contradiction(
     states = index.reference.states
     distance = index.occupied_distance
     limit = 2.0 * threshold
-    chance = _clear_free_share(states, distance, limit)
+    # the share of the known cells that are free and farther than ``limit`` from walls
+    known = index.known_count
+    chance = index.free_beyond_count(limit) / known if known else 0.0
     owner = owners(found, points.shape[0])
     assigned = owner >= 0
     if not assigned.any():
@@ -334,23 +336,3 @@ def wall_contradiction(
         counted += int(np.count_nonzero(landed != UNKNOWN))
         contradicting += int(np.count_nonzero((landed == FREE) & beyond(distance[y, x], limit)))
     return WallContradiction(counted, contradicting, chance)
-
-
-def _count_known(states: NDArray[np.int8]) -> int:
-    """The known cells of ``states``, counted in bands of rows (no mask of the grid)."""
-    return sum(
-        int(np.count_nonzero(states[r0 : r0 + _BAND_ROWS] != UNKNOWN))
-        for r0 in range(0, states.shape[0], _BAND_ROWS)
-    )
-
-
-def _clear_free_share(states: NDArray[np.int8], distance: DistanceMap, limit: float) -> float:
-    """The share of the known cells that are free and farther than ``limit`` from walls
-    (counted in bands of rows: no temporary of the grid's size)."""
-    known = clear = 0
-    for r0 in range(0, states.shape[0], _BAND_ROWS):
-        band = states[r0 : r0 + _BAND_ROWS]
-        known += int(np.count_nonzero(band != UNKNOWN))
-        far = beyond(distance[r0 : r0 + _BAND_ROWS], limit)
-        clear += int(np.count_nonzero((band == FREE) & far))
-    return clear / known if known else 0.0

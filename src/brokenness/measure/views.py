@@ -192,12 +192,12 @@ def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
 def isolated_points(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.bool_]:
     """:func:`isolated_cells` at the given (distinct) occupied cells, counting only those.
 
-    The cells of the 5x5 neighbourhood of each are looked up in a grid of their box (the
-    cost follows the cells, not the grid): 25 lookups per cell.
+    A small box of the cells is filtered as a grid; otherwise the cells are looked up among
+    themselves, sorted by row and column (:func:`_isolated_sorted`): the cost follows the
+    cells, not their box, and there is no temporary of the box's size.
     """
-    isolated = np.zeros(rows.shape[0], dtype=bool)
     if rows.size == 0:
-        return isolated
+        return np.zeros(0, dtype=bool)
     r0, c0 = int(rows.min()) - 2, int(cols.min()) - 2
     width = int(cols.max()) - c0 + 3
     height = int(rows.max()) - r0 + 3
@@ -205,14 +205,37 @@ def isolated_points(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[n
         box = np.zeros((height, width), dtype=bool)
         box[rows - r0, cols - c0] = True
         return isolated_cells(box)[rows - r0, cols - c0]
-    grid = np.zeros(height * width, dtype=np.uint8)
-    flat = (rows - r0) * width + (cols - c0)
-    grid[flat] = 1
-    count = np.zeros(rows.shape[0], dtype=np.uint8)
-    for dy in range(-2, 3):
-        for dx in range(-2, 3):
-            count += grid[flat + (dy * width + dx)]
-    return count == 1
+    # row-major keys with two free columns on either side: cells of a row within two
+    # columns of each other differ by at most 2, cells of different rows by at least 5
+    keys = (rows - r0).astype(np.int64) * width + (cols - c0)
+    if keys.size > 1 and not bool(np.all(keys[1:] > keys[:-1])):  # not row by row: sort
+        order = np.argsort(keys, kind="stable")
+        isolated = np.empty(keys.size, dtype=bool)
+        isolated[order] = _isolated_sorted(keys[order], width)
+        return isolated
+    return _isolated_sorted(keys, width)
+
+
+def _isolated_sorted(keys: NDArray[np.int64], width: int) -> NDArray[np.bool_]:
+    """Per key, whether no other key lies within two rows and two columns of it.
+
+    ``keys`` are ``row * width + col`` of distinct cells, ascending, every ``col`` at least 2
+    and at most ``width - 3``: within a row the nearest other cells are the keys beside it
+    in the order; in each of the four other rows, the first key at or after that row's
+    ``col - 2`` is looked up (one binary search a cell and a row).
+    """
+    n = keys.size
+    near = np.zeros(n, dtype=bool)
+    beside = (keys[1:] - keys[:-1]) <= 2  # the same row, within two columns
+    near[1:] = beside
+    near[:-1] |= beside
+    for dy in (-2, -1, 1, 2):
+        low = keys + (dy * width - 2)  # that row, two columns to the left
+        at = np.searchsorted(keys, low)
+        np.minimum(at, n - 1, out=at)  # past the end: a key below ``low``, which fails
+        gap = keys[at] - low
+        near |= (gap >= 0) & (gap <= 4)
+    return ~near
 
 
 def reference_states(

@@ -28,6 +28,7 @@ __all__ = [
     "edges",
     "inlier_count",
     "inlier_counts",
+    "outline_distance_field",
     "refine_rigid",
     "refine_rigid_many",
 ]
@@ -90,6 +91,31 @@ def edge_distance_field(occupied: NDArray[np.bool_]) -> NDArray[np.float32]:
     outline = _edges_u8(occupied)
     np.bitwise_xor(outline, 1, out=outline)  # non-zero: not an outline cell
     out = cv2.distanceTransform(outline, cv2.DIST_L2, cv2.DIST_MASK_5)
+    return np.asarray(out, dtype=np.float32)
+
+
+def outline_distance_field(
+    outline: NDArray[np.int32], shape: tuple[int, int]
+) -> NDArray[np.float32]:
+    """:func:`distance_field` of a ``shape`` grid whose True cells are ``outline``.
+
+    Parameters
+    ----------
+    outline : ndarray of int32, shape (N, 2)
+        ``(x, y)`` of the cells (inside the grid), as :func:`edge_points` lists them.
+    shape : (int, int)
+        ``(rows, cols)`` of the grid.
+
+    Returns
+    -------
+    ndarray of float32
+        ``shape``: the same values as :func:`edge_distance_field` of occupied cells whose
+        :func:`edges` are ``outline``, from one grid of bytes marked at the cells.
+    """
+    rows, cols = shape
+    other = np.ones(rows * cols, dtype=np.uint8)  # non-zero: not an outline cell
+    other[outline[:, 1].astype(np.intp) * cols + outline[:, 0]] = 0
+    out = cv2.distanceTransform(other.reshape(rows, cols), cv2.DIST_L2, cv2.DIST_MASK_5)
     return np.asarray(out, dtype=np.float32)
 
 

@@ -248,6 +248,17 @@ def _cells_box(cells: OccupiedCells) -> tuple[int, int, int, int] | None:
     return int(y[0]), int(y[-1]) + 1, int(x.min()), int(x.max()) + 1
 
 
+def _crop_points(cells: OccupiedCells) -> NDArray[np.int32]:
+    """``(x, y)`` of the occupied cells of ``cells.crop``, row by row (its ``points`` when
+    given, else one scan of the crop)."""
+    if cells.points is not None:
+        return np.ascontiguousarray(cells.points, dtype=np.int32)
+    found = cv2.findNonZero(np.ascontiguousarray(cells.crop, dtype=np.bool_).view(np.uint8))
+    if found is None:
+        return np.zeros((0, 2), dtype=np.int32)
+    return np.asarray(found, dtype=np.int32).reshape(-1, 2)
+
+
 def _same_moving(a: NDArray[np.int8] | _Cells, b: NDArray[np.int8] | OccupiedCells) -> bool:
     """Whether a remembered moving map and a new one (grids or occupied cells) are the same,
     by content."""
@@ -430,19 +441,20 @@ class IFMIRegistrar:
         """
         if isinstance(reference_states, OccupiedCells):
             cells = reference_states
-            box = _spectral.bounding_box(cells.crop)
-            if box is None:
-                raise MapError(
-                    "the reference has no occupied cell, there is nothing to register to"
-                )
-            dc, dr = cells.offset
-            r0, r1, c0, c1 = box[0] + dr, box[1] + dr, box[2] + dc, box[3] + dc
-            h, w = cells.shape
         else:
             states = np.asarray(reference_states)
-            occ, (r0, r1, c0, c1) = _occupied_box(states, "reference", "to register to")
+            occ, _ = _occupied_box(states, "reference", "to register to")
             cells = OccupiedCells(occ, (0, 0), (int(states.shape[0]), int(states.shape[1])))
-            h, w = cells.shape
+        # the occupied cells, (x, y) in the crop row by row: the box, the outline and the
+        # pooled images follow them, not the grid
+        points = _crop_points(cells)
+        if points.shape[0] == 0:
+            raise MapError("the reference has no occupied cell, there is nothing to register to")
+        dc, dr = cells.offset
+        x, y = points[:, 0], points[:, 1]
+        r0, r1 = int(y[0]) + dr, int(y[-1]) + 1 + dr
+        c0, c1 = int(x.min()) + dc, int(x.max()) + 1 + dc
+        h, w = cells.shape
         extent = max(r1 - r0, c1 - c0)
         factor = max(1, math.ceil(extent / self.max_size))
         rot_factor = max(1, math.ceil(extent / self.rotation_size))
@@ -464,13 +476,18 @@ class IFMIRegistrar:
             margin = max(_DISTANCE_MARGIN, 2 * factor + 8)
             dr0, dr1 = max(r0 - margin, 0), min(r1 + margin, h)
             dc0, dc1 = max(c0 - margin, 0), min(c1 + margin, w)
-            prepared.distance = _refine.edge_distance_field(
-                _window(cells, dr0, dr1, dc0, dc1, copy=False)
-            )
+            # the outline found by looking up the cells' neighbours in the crop: off the
+            # crop nothing is occupied, as off the window for _refine.edge_distance_field
+            outline = _refine.edge_points(cells.crop, points)
+            outline += np.array([dc - dc0, dr - dr0], dtype=np.int32)
+            prepared.distance = _refine.outline_distance_field(outline, (dr1 - dr0, dc1 - dc0))
             prepared.distance_offset = (dc0, dr0)
-        # the usual work, done up front (the pooled images from the cells at hand)
+        # the usual work, done up front (the pooled images from the cells)
+        in_walls = points - np.array([c0 - dc, r0 - dr], dtype=np.int32)
         for f in (factor, rot_factor):
-            prepared.levels[f] = _spectral.coarse_indicator(walls, f)
+            prepared.levels[f] = _spectral.coarse_indicator_of_points(
+                in_walls, (r1 - r0, c1 - c0), f
+            )
         self._reference_signature(prepared, rot_factor)
         return prepared
 
