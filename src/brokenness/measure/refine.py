@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from ..masking.distance import DistanceMap, sample_at
+from ..masking.distance import DistanceMap, sample_at, sample_xy
 from ..transform import RigidTransform
 
 __all__ = [
@@ -154,24 +154,34 @@ def sweep_rotation(
     deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
     moved = transform.apply(points)
     # the fan in the float32 of the lookup, each point rounded once from float64 as the
-    # lookup would round it (no float64 copy of the fan)
-    fan = np.empty((len(deltas) + 1, moved.shape[0], 2), dtype=np.float32)
-    fan[0] = moved
-    _turned(moved, pivot, deltas, out=fan[1:])
-    k = int(np.argmax(_soft_scores(distance_map, fan, threshold)))
+    # lookup would round it (no float64 copy of the fan), its columns and rows as two planes
+    fan = _planes(len(deltas) + 1, moved.shape[0])
+    fan[0][0], fan[1][0] = moved[:, 0], moved[:, 1]
+    _turned(moved, pivot, deltas, out=(fan[0][1:], fan[1][1:]))
+    k = int(np.argmax(_soft_scores_xy(distance_map, fan, threshold)))
     # the first of equal scores: no turn wins ties
     return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
+
+
+#: Points as two planes of one shape: their columns ``x`` and their rows ``y`` (float32, as
+#: :func:`~brokenness.masking.distance.sample_xy` looks them up).
+_Planes = tuple[NDArray[np.float32], NDArray[np.float32]]
+
+
+def _planes(count: int, n: int) -> _Planes:
+    """Two empty ``(count, n)`` float32 planes: ``count`` sets of ``n`` points."""
+    return np.empty((count, n), dtype=np.float32), np.empty((count, n), dtype=np.float32)
 
 
 def _turned(
     moved: NDArray[np.float64],
     pivot: NDArray[np.float64],
     angles: list[float],
-    out: NDArray[np.floating] | None = None,
-) -> NDArray[np.floating]:
-    """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
-    (written to ``out`` if given: computed in float64, then rounded to ``out``'s type)."""
-    return _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
+    out: _Planes,
+) -> None:
+    """Write ``moved`` turned about ``pivot`` by each of ``angles`` to the planes ``out``
+    (each ``(len(angles), N)``: computed in float64, then rounded to float32)."""
+    _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
 
 
 def _offsets(
@@ -186,24 +196,39 @@ def _turn_offsets(
     offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
     pivot: NDArray[np.float64],
     angles: list[float],
-    out: NDArray[np.floating] | None = None,
-) -> NDArray[np.floating]:
+    out: _Planes,
+) -> None:
     """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given."""
     dx, dy = offsets
     a = np.asarray(angles, dtype=np.float64)[:, None]
     c, s = np.cos(a), np.sin(a)
-    if out is None:
-        out = np.empty((a.shape[0], dx.shape[0], 2))
-    out[:, :, 0] = c * dx - s * dy + pivot[0]
-    out[:, :, 1] = s * dx + c * dy + pivot[1]
-    return out
+    # c dx - s dy + x0 and s dx + c dy + y0 in float64 (one temporary each), then rounded
+    x = c * dx
+    x -= s * dy
+    x += pivot[0]
+    out[0][...] = x
+    y = s * dx
+    y += c * dy
+    y += pivot[1]
+    out[1][...] = y
 
 
 def _soft_scores(
     distance_map: DistanceMap, moved: NDArray[np.floating], threshold: float
 ) -> NDArray[np.float64]:
     """:func:`soft_agreement` of each set of moved points, ``moved`` of shape (K, N, 2)."""
-    d = sample_at(distance_map, moved, threshold + 1.0)  # shape (K, N)
+    return _scores(sample_at(distance_map, moved, threshold + 1.0), threshold)
+
+
+def _soft_scores_xy(
+    distance_map: DistanceMap, moved: _Planes, threshold: float
+) -> NDArray[np.float64]:
+    """:func:`_soft_scores` of the points given as two ``(K, N)`` planes."""
+    return _scores(sample_xy(distance_map, moved[0], moved[1], threshold + 1.0), threshold)
+
+
+def _scores(d: NDArray[np.float32], threshold: float) -> NDArray[np.float64]:
+    """:func:`soft_agreement` of each row of the samples ``d`` (shape (K, N))."""
     return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
 
 
@@ -261,8 +286,10 @@ def polish_transform(
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
     # the moves in the float32 of the lookup: each coordinate computed in float64 and
-    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy)
-    moves = np.empty((6, moved.shape[0], 2), dtype=np.float32)
+    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy),
+    # their columns and rows as two planes
+    moves = _planes(6, moved.shape[0])
+    mx, my = moves
     offsets, fresh = _offsets(moved, pivot), True  # fresh: moved changed since the last round
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
@@ -276,17 +303,17 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=moves[:2])
+        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=(mx[:2], my[:2]))
         # the four shifts, each along its own axis (float64 sums, rounded into the moves);
         # the other axis is moved's, written again only when moved has changed
         if fresh:
-            moves[2:4, :, 1] = moved[:, 1]
-            moves[4:6, :, 0] = moved[:, 0]
+            my[2:4] = moved[:, 1]
+            mx[4:6] = moved[:, 0]
             fresh = False
         both = np.array([[shift_step], [-shift_step]])  # x + (-s) is x - s, exactly
-        np.add(moved[:, 0], both, out=moves[2:4, :, 0])
-        np.add(moved[:, 1], both, out=moves[4:6, :, 1])
-        scores = _soft_scores(distance_map, moves, threshold)
+        np.add(moved[:, 0], both, out=mx[2:4])
+        np.add(moved[:, 1], both, out=my[4:6])
+        scores = _soft_scores_xy(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
         if scores[k] > best_score:
