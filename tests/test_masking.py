@@ -244,6 +244,26 @@ def test_nearest_points_matches_a_kd_tree():
     assert not found[~inside].any()
 
 
+@pytest.mark.parametrize("table", [True, False])
+def test_correspondences_are_the_finite_rows_of_nearest_points(table, monkeypatch):
+    # the lookup table's answer and the KD-tree's (a reference above the table's size)
+    import brokenness.masking.agreement as agreement
+
+    if not table:
+        monkeypatch.setattr(agreement, "_LOOKUP_TABLE_CELLS", 10)
+    rng = np.random.default_rng(5)
+    states = np.where(rng.random((90, 120)) < 0.03, 1, 0).astype(np.int8)
+    index = ReferenceIndex.build(OccupancyMap(states))
+    pts = rng.random((3000, 2)) * [160, 130] - 20  # some off the grid
+    for reach in (0.5, 4.0):
+        every = index.nearest_points(pts, reach)
+        rows, cells = index.correspondences(pts, reach)
+        finite = np.flatnonzero(np.isfinite(every[:, 0]))
+        assert rows.dtype == np.intp and 0 < rows.size < len(pts)
+        np.testing.assert_array_equal(rows, finite)
+        assert cells.tobytes() == every[finite].tobytes()
+
+
 def test_picture_distance_far_apart_kinds_need_several_saturated_passes():
     # the only free cell of b is about 600 cells from most free cells of a: distances of
     # 255 and more come from the later one-byte passes, and must still be exact

@@ -77,7 +77,7 @@ def test_sweep_finds_the_turn_about_the_agreeing_cells():
 def test_icp_and_polish_undo_a_small_error():
     index, pts = _index()
     start = _turn_about(pts.mean(axis=0), math.radians(0.3), 1.6, -1.2)
-    fitted = refine_transform(start, pts, index.nearest_points, gate=3.0)
+    fitted = refine_transform(start, pts, index.correspondences, gate=3.0)
     polished = polish_transform(fitted, pts, index.occupied_distance, 2.0)
     assert np.mean(RigidTransform().displacement(polished, pts)) < 0.05
     before = soft_agreement(index.occupied_distance, start.apply(pts), 2.0)

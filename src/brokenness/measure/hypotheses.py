@@ -110,7 +110,7 @@ def _refinements(
     pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(
-        swept, sample, index.nearest_points, gate=threshold + 1.0, iterations=ICP_ITERATIONS
+        swept, sample, index.correspondences, gate=threshold + 1.0, iterations=ICP_ITERATIONS
     )
     polished = polish_transform(
         fitted, take_rows(sample, hard(fitted.apply(sample))), index.occupied_distance, threshold

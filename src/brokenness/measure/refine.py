@@ -57,21 +57,27 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
         ``t`` minimising ``sum |t(source) - target|^2``.
     """
     # sums and cross-products as BLAS products: numpy's axis-0 reductions of (N, 2) arrays
-    # are several times slower, and ICP calls this on every iteration
+    # are several times slower, and ICP calls this on every iteration; the 2x2 algebra on
+    # Python floats (the same IEEE operations as numpy's, without its per-call overhead)
     ones = np.ones(source.shape[0])
     n = float(source.shape[0])
-    cs = (ones @ source) / n
-    ct = (ones @ target) / n
-    h = source.T @ target - n * (cs[:, None] * ct[None, :])  # 2x2 cross-covariance (times N)
-    angle = math.atan2(float(h[0, 1] - h[1, 0]), float(h[0, 0] + h[1, 1]))
+    sx, sy = (ones @ source).tolist()
+    tx, ty = (ones @ target).tolist()
+    csx, csy, ctx, cty = sx / n, sy / n, tx / n, ty / n
+    (h00, h01), (h10, h11) = (source.T @ target).tolist()  # cross-covariance (times N) ...
+    h00 -= n * (csx * ctx)  # ... less the centroids' part
+    h01 -= n * (csx * cty)
+    h10 -= n * (csy * ctx)
+    h11 -= n * (csy * cty)
+    angle = math.atan2(h01 - h10, h00 + h11)
     c, si = math.cos(angle), math.sin(angle)
-    return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
+    return RigidTransform(angle, ctx - (c * csx - si * csy), cty - (si * csx + c * csy))
 
 
 def refine_transform(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    nearest: Callable[[NDArray[np.float64], float], NDArray[np.float64]],
+    nearest: Callable[[NDArray[np.float64], float], tuple[NDArray[np.intp], NDArray[np.float64]]],
     *,
     gate: float,
     iterations: int = 20,
@@ -86,9 +92,10 @@ def refine_transform(
     points : ndarray, shape (N, 2)
         Occupied map cells to align (others' cells may be among them: the gate rejects them).
     nearest : callable
-        ``nearest(moved, gate)`` -> the nearest occupied reference cell of each moved point,
-        ``inf`` where none is within ``gate``
-        (:meth:`brokenness.masking.ReferenceIndex.nearest_points`).
+        ``nearest(moved, gate)`` -> ``(rows, cells)``: the indices (ascending) of the moved
+        points within ``gate`` of an occupied reference cell, and the nearest such cell of
+        each, shape ``(len(rows), 2)``
+        (:meth:`brokenness.masking.ReferenceIndex.correspondences`).
     gate : float
         Correspondences farther than this (cells) are ignored.
     iterations : int
@@ -106,11 +113,10 @@ def refine_transform(
     current = transform
     for _ in range(iterations):
         moved = current.apply(points)
-        matched = nearest(moved, gate)
-        inliers = np.flatnonzero(np.isfinite(matched[:, 0]))
+        inliers, matched = nearest(moved, gate)
         if inliers.size < 3:
             break
-        step = fit_rigid(moved.take(inliers, axis=0), matched.take(inliers, axis=0))
+        step = fit_rigid(moved.take(inliers, axis=0), matched)
         current = step.compose(current)
         if abs(step.rotation) < 1e-4 and math.hypot(step.tx, step.ty) < 1e-2:
             break

@@ -526,7 +526,7 @@ def _refit(
         return transform
     pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(swept, cells, index.nearest_points, gate=settings.loose)
+    fitted = refine_transform(swept, cells, index.correspondences, gate=settings.loose)
     polished = polish_transform(
         fitted,
         take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),
