@@ -188,9 +188,12 @@ def refine_rigid_many(
     centre = points.mean(axis=0)
     cx = points[:, 0] - centre[0]
     cy = points[:, 1] - centre[1]
-    theta = np.array([math.atan2(m[1, 0], m[0, 0]) for m in matrices])
-    mx = np.array([m[0, 0] * centre[0] + m[0, 1] * centre[1] + m[0, 2] for m in matrices])
-    my = np.array([m[1, 0] * centre[0] + m[1, 1] * centre[1] + m[1, 2] for m in matrices])
+    # each transform's angle and where it puts the centre, as Python floats (updated one
+    # transform at a time below: numpy's scalar indexing would cost more than the algebra)
+    c0, c1 = float(centre[0]), float(centre[1])
+    theta = [math.atan2(m[1, 0], m[0, 0]) for m in matrices]
+    mx = [float(m[0, 0]) * c0 + float(m[0, 1]) * c1 + float(m[0, 2]) for m in matrices]
+    my = [float(m[1, 0]) * c0 + float(m[1, 1]) * c1 + float(m[1, 2]) for m in matrices]
     iterations = max(1, iterations)
     shrink = max(1, iterations // 2)
     # inlier radius: geometric from start to end over the first half, then constant
@@ -210,13 +213,13 @@ def refine_rigid_many(
         if not active:
             break
         a = len(active)
-        idx = np.array(active)
-        c = np.cos(theta[idx])[:, None]
-        s = np.sin(theta[idx])[:, None]
+        angles = np.array([theta[h] for h in active])
+        c = np.cos(angles)[:, None]
+        s = np.sin(angles)[:, None]
         rx = c * cx - s * cy  # (a, n) rotated, centred points
         ry = s * cx + c * cy
-        _neighbours(rx + mx[idx, None], plane_x[:a], (1, 2))
-        _neighbours(ry + my[idx, None], plane_y[:a], (3, 4))
+        _neighbours(rx + np.array([mx[h] for h in active])[:, None], plane_x[:a], (1, 2))
+        _neighbours(ry + np.array([my[h] for h in active])[:, None], plane_y[:a], (3, 4))
         vals = sample_xy(field, plane_x[:a], plane_y[:a], far)  # (a, 5, n)
         keep = vals[:, 0] < radius  # (a, n)
         counts = np.count_nonzero(keep, axis=1)
@@ -229,12 +232,12 @@ def refine_rigid_many(
         # d q / d theta is the rotated, centred point turned by 90 deg
         np.subtract(gy * rx, gx * ry, out=rows[:, 0])
         # per transform, the 3x3 normal matrix and the right-hand side, as one batched product
-        sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1))  # (a, 3, 4)
+        sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1)).tolist()  # (a, 3, 4)
         still = []
-        for j, h in enumerate(active):
-            if counts[j] < 3:
+        for h, inliers, system in zip(active, counts.tolist(), sums, strict=True):
+            if inliers < 3:
                 continue
-            (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = sums[j].tolist()
+            (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = system
             if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
                 continue
             # Levenberg-style damping of the diagonal, then Cramer's rule for the 3x3 system
