@@ -163,7 +163,11 @@ def sweep_rotation(
     # lookup would round it (no float64 copy of the fan), its columns and rows as two planes
     fan = _planes(len(deltas) + 1, moved.shape[0])
     fan[0][0], fan[1][0] = moved[:, 0], moved[:, 1]
-    _turned(moved, pivot, deltas, out=(fan[0][1:], fan[1][1:]))
+    # the turns ascend from -half_range to half_range: turn k from the end is the negative
+    # of turn k from the start
+    half = len(deltas) // 2
+    pairs = (slice(half, None), slice(half - 1, None, -1))
+    _turned(moved, pivot, _trig(deltas), (fan[0][1:], fan[1][1:]), pairs)
     k = int(np.argmax(_soft_scores_xy(distance_map, fan, threshold)))
     # the first of equal scores: no turn wins ties
     return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
@@ -179,15 +183,28 @@ def _planes(count: int, n: int) -> _Planes:
     return np.empty((count, n), dtype=np.float32), np.empty((count, n), dtype=np.float32)
 
 
+#: Two sets of rows of a fan of turns, ``(a, b)``: the angle of row ``b[i]`` is the
+#: negative of that of row ``a[i]``.
+_Pairs = tuple[slice, slice]
+
+
+def _trig(angles: list[float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The cosines and sines of ``angles``, each of shape ``(len(angles), 1)``."""
+    a = np.asarray(angles, dtype=np.float64)[:, None]
+    return np.cos(a), np.sin(a)
+
+
 def _turned(
     moved: NDArray[np.float64],
     pivot: NDArray[np.float64],
-    angles: list[float],
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
     out: _Planes,
+    pairs: _Pairs | None = None,
 ) -> None:
-    """Write ``moved`` turned about ``pivot`` by each of ``angles`` to the planes ``out``
-    (each ``(len(angles), N)``: computed in float64, then rounded to float32)."""
-    _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
+    """Write ``moved`` turned about ``pivot`` by each of the angles whose :func:`_trig` is
+    given to the planes ``out`` (each ``(len(angles), N)``: computed in float64, then
+    rounded to float32); ``pairs`` as for :func:`_turn_offsets`."""
+    _turn_offsets(_offsets(moved, pivot), pivot, trig, out, pairs)
 
 
 def _offsets(
@@ -201,22 +218,53 @@ def _offsets(
 def _turn_offsets(
     offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
     pivot: NDArray[np.float64],
-    angles: list[float],
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
     out: _Planes,
+    pairs: _Pairs | None = None,
 ) -> None:
-    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given."""
+    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given.
+
+    Each point is ``(c dx - s dy + x0, s dx + c dy + y0)``, in float64. With ``pairs``, the
+    rows of the rest of the fan whose angles are negatives of each other, whose cosines
+    are the same and whose sines are negated, bit for bit: the turn by ``-a`` is then the
+    sum and the difference of the same products as the turn by ``a``, exactly
+    (``c dx - (-s) dy = c dx + s dy`` and ``(-s) dx + c dy = c dy - s dx``), half the
+    products. Every row of ``out`` must be in one of the two sets.
+    """
+    c, s = trig
+    if pairs is not None:
+        pos, neg = pairs
+        if c[neg].tobytes() == c[pos].tobytes() and s[neg].tobytes() == (-s[pos]).tobytes():
+            _turn_pairs(offsets, pivot, (c[pos], s[pos]), (out[0][pos], out[1][pos]), out, neg)
+            return
     dx, dy = offsets
-    a = np.asarray(angles, dtype=np.float64)[:, None]
-    c, s = np.cos(a), np.sin(a)
     # c dx - s dy + x0 and s dx + c dy + y0 in float64 (one temporary each), then rounded
     x = c * dx
     x -= s * dy
-    x += pivot[0]
-    out[0][...] = x
+    np.add(x, pivot[0], out=out[0])
     y = s * dx
     y += c * dy
-    y += pivot[1]
-    out[1][...] = y
+    np.add(y, pivot[1], out=out[1])
+
+
+def _turn_pairs(
+    offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
+    pivot: NDArray[np.float64],
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
+    first: _Planes,
+    out: _Planes,
+    neg: slice,
+) -> None:
+    """:func:`_turn_offsets` of the turns by the angles ``a`` of ``trig`` (their cosines and
+    sines) into the planes ``first`` and by the ``-a`` into the rows ``neg`` of ``out``."""
+    dx, dy = offsets
+    c, s = trig
+    cdx, sdy = c * dx, s * dy
+    np.add(cdx - sdy, pivot[0], out=first[0])
+    np.add(cdx + sdy, pivot[0], out=out[0][neg])
+    sdx, cdy = s * dx, c * dy
+    np.add(sdx + cdy, pivot[1], out=first[1])
+    np.add(cdy - sdx, pivot[1], out=out[1][neg])
 
 
 def _soft_scores(
@@ -309,7 +357,7 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=(mx[:2], my[:2]))
+        _turn_offsets(offsets, pivot, _trig([rot_step, -rot_step]), (mx[:2], my[:2]))
         # the four shifts, each along its own axis (float64 sums, rounded into the moves);
         # the other axis is moved's, written again only when moved has changed
         if fresh:
