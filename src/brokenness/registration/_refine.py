@@ -223,12 +223,12 @@ def refine_rigid_many(
         vals = sample_xy(field, plane_x[:a], plane_y[:a], far)  # (a, 5, n)
         keep = vals[:, 0] < radius  # (a, n)
         counts = np.count_nonzero(keep, axis=1)
-        v = vals.astype(np.float64)
         w = keep.astype(np.float64)
         rows = normal[:a]  # (a, 4, n): d/d theta, d/dx, d/dy and the residual
-        np.multiply(v[:, 0], w, out=rows[:, 3])
-        gx = np.multiply(0.5 * (v[:, 1] - v[:, 2]), w, out=rows[:, 1])
-        gy = np.multiply(0.5 * (v[:, 3] - v[:, 4]), w, out=rows[:, 2])
+        # in float64 from the float32 samples (each converted exactly, as by astype)
+        np.multiply(vals[:, 0], w, out=rows[:, 3])
+        gx = np.multiply(0.5 * _difference(vals[:, 1], vals[:, 2]), w, out=rows[:, 1])
+        gy = np.multiply(0.5 * _difference(vals[:, 3], vals[:, 4]), w, out=rows[:, 2])
         # d q / d theta is the rotated, centred point turned by 90 deg
         np.subtract(gy * rx, gx * ry, out=rows[:, 0])
         # per transform, the 3x3 normal matrix and the right-hand side, as one batched product
@@ -267,6 +267,11 @@ def refine_rigid_many(
         m[:2, 2] = t
         out.append(m)
     return out
+
+
+def _difference(a: NDArray[np.float32], b: NDArray[np.float32]) -> NDArray[np.float64]:
+    """``a - b`` in float64 (both converted exactly first, without a float64 copy)."""
+    return np.subtract(a, b, dtype=np.float64)
 
 
 def _neighbours(
