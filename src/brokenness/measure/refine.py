@@ -207,6 +207,13 @@ def _turned(
     _turn_offsets(_offsets(moved, pivot), pivot, trig, out, pairs)
 
 
+def _columns(
+    points: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The columns ``x`` and ``y`` of ``points`` (shape (N, 2)), each contiguous."""
+    return np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
+
+
 def _offsets(
     moved: NDArray[np.float64], pivot: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -344,7 +351,10 @@ def polish_transform(
     # their columns and rows as two planes
     moves = _planes(6, moved.shape[0])
     mx, my = moves
-    offsets, fresh = _offsets(moved, pivot), True  # fresh: moved changed since the last round
+    # moved's columns (contiguous), and their offsets from the pivot
+    xs, ys = _columns(moved)
+    offsets = (xs - pivot[0], ys - pivot[1])
+    fresh = True  # moved changed since the last round
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
         # and y), scored together; the best one is taken if it improves, else the steps
@@ -361,20 +371,22 @@ def polish_transform(
         # the four shifts, each along its own axis (float64 sums, rounded into the moves);
         # the other axis is moved's, written again only when moved has changed
         if fresh:
-            my[2:4] = moved[:, 1]
-            mx[4:6] = moved[:, 0]
+            my[2:4] = ys
+            mx[4:6] = xs
             fresh = False
-        both = np.array([[shift_step], [-shift_step]])  # x + (-s) is x - s, exactly
-        np.add(moved[:, 0], both, out=mx[2:4])
-        np.add(moved[:, 1], both, out=my[4:6])
+        np.add(xs, shift_step, out=mx[2])
+        np.subtract(xs, shift_step, out=mx[3])
+        np.add(ys, shift_step, out=my[4])
+        np.subtract(ys, shift_step, out=my[5])
         scores = _soft_scores_xy(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
         if scores[k] > best_score:
             best = _turn_about(pivot, *steps[k]).compose(best)
             best_score = float(scores[k])
-            moved = best.apply(points)
-            offsets, fresh = _offsets(moved, pivot), True
+            xs, ys = _columns(best.apply(points))
+            offsets = (xs - pivot[0], ys - pivot[1])
+            fresh = True
         else:
             rot_step *= 0.5
             shift_step *= 0.5
