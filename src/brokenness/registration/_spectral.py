@@ -33,6 +33,7 @@ __all__ = [
     "log_polar_signature",
     "packed_size",
     "packed_spectrum",
+    "padded_spectrum",
     "parabolic_offset",
     "polar_grid",
     "whiten",
@@ -216,6 +217,12 @@ def packed_spectrum(image: F32, shape: tuple[int, int]) -> F32:
     rows, cols = image.shape
     canvas = np.zeros(shape, dtype=np.float32)
     canvas[:rows, :cols] = image
+    return padded_spectrum(canvas)
+
+
+def padded_spectrum(canvas: F32) -> F32:
+    """:func:`packed_spectrum` of an image already zero-padded: ``canvas`` is the padded
+    image itself (even sides), for a caller that draws its images into one padded canvas."""
     return whiten_packed(np.asarray(cv2.dft(canvas), dtype=np.float32))
 
 

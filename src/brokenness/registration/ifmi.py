@@ -777,6 +777,10 @@ class IFMIRegistrar:
         centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
         centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
         found: dict[float, list[tuple[NDArray[np.float64], float]]] = {}
+        # one zero-padded canvas for every angle: each rotated image is drawn into its
+        # corner (every cell of which the warp writes), the padding stays zero
+        padded_canvas = np.zeros(padded, dtype=np.float32)
+        canvas = padded_canvas[:side, :side]
         for theta in thetas:
             out: list[tuple[NDArray[np.float64], float]] = found.setdefault(theta, [])
             rot = _rot(theta)
@@ -784,15 +788,18 @@ class IFMIRegistrar:
             # the shift is rounded so that theta = 0 is an exact (interpolation-free) copy
             t = np.round(centre_c - rot[:2, :2] @ centre_m)
             to_canvas = _shift(t[0], t[1]) @ rot
-            canvas: NDArray[np.float32] = cv2.warpAffine(  # type: ignore[assignment]
+            drawn = cv2.warpAffine(
                 g,
                 to_canvas[:2].astype(np.float64),
                 (side, side),
+                dst=canvas,
                 flags=cv2.INTER_LINEAR,
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=0.0,
             )
-            spec = _spectral.packed_spectrum(canvas, padded)
+            if drawn is not canvas:  # a new image (OpenCV makes none for this type and size)
+                canvas[...] = drawn
+            spec = _spectral.padded_spectrum(padded_canvas)
             for twin in (False, True):
                 # the flipped canvas has the conjugate spectrum: correlate without conjugating
                 cross = cv2.mulSpectrums(spec_ref, spec, 0, conjB=not twin)
