@@ -175,7 +175,8 @@ def settle(
             mine = np.flatnonzero(seeds_arr == j)
             if mine.size == 0:
                 continue
-            others = (covered - agree[j]) > 0
+            rest = covered - agree[j]  # the partitions but j that explain each cell
+            others = rest > 0
             near = mine[mine < local]
             if near.size:
                 gains = np.count_nonzero(others | offered[near], axis=1) - explained
@@ -183,7 +184,9 @@ def settle(
                 if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
-                gain, redundant = _rival_gain(j, offered[c], agree, covered, alone, p0, settings)
+                gain, redundant = _rival_gain(
+                    j, offered[c], agree, (rest, others, explained), alone, p0, settings
+                )
                 if gain > best_gain:
                     best_gain, best, emptied = gain, (j, int(c)), redundant
         if best is not None:
@@ -233,15 +236,16 @@ def _rival_gain(
     j: int,
     offered: NDArray[np.bool_],
     agree: NDArray[np.bool_],
-    covered: NDArray[np.int64],
+    without: tuple[NDArray[np.int64], NDArray[np.bool_], int],
     alone: NDArray[np.intp],
     p0: float,
     settings: Settings,
 ) -> tuple[int, NDArray[np.intp]]:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
-    gains, and the partitions it leaves redundant (step 3). ``covered`` counts the
-    partitions that explain each cell, and ``alone`` is, per partition, its cells no other
-    explains.
+    gains, and the partitions it leaves redundant (step 3). ``without`` is what the
+    partitions explain without ``j`` (the same for every rival of ``j``): per cell how many
+    of the others explain it, whether any does, and how many cells all the partitions
+    explain; ``alone`` is, per partition, its cells no other explains.
 
     The gain is the count the recursion maximises: cells explained by some partition. A
     partition that had at least ``min_cells`` cells no other explains, and has fewer once
@@ -253,15 +257,15 @@ def _rival_gain(
     partition with the smallest partition's cells, a cost per partition, replaced two small
     partitions by one transform that explained fewer cells: a degree one short.)
     """
-    after = covered - agree[j] + offered
-    others = (covered - agree[j]) > 0
+    rest, others, explained = without
+    after = rest + offered
     alone_after = np.count_nonzero(agree & (after == 1), axis=1)
     emptied = (alone >= settings.min_cells) & (alone_after < settings.min_cells)
     emptied[j] = False
     redundant = np.flatnonzero(emptied)
     if redundant.size:
         after = after - agree[redundant].sum(axis=0)
-    gain = int(np.count_nonzero(after)) - int(np.count_nonzero(covered))
+    gain = int(np.count_nonzero(after)) - explained
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
     return (gain, redundant) if gain > margin else (0, _NO_CELLS)
