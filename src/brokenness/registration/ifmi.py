@@ -635,6 +635,7 @@ class IFMIRegistrar:
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
         # the moving points under each kept hypothesis
         placed = np.empty((max_candidates, mov.points.shape[0], 2), dtype=np.float64)
+        centres = np.empty((max_candidates, 2))  # ... and their centroids
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
@@ -648,9 +649,11 @@ class IFMIRegistrar:
                 # are very unlikely to win and keep their spectral estimate (saves time)
                 full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
             moved = mov.points @ full[:2, :2].T + full[:2, 2]
-            if self._same_as_any(moved, placed[: len(scored)]):
+            centre = moved.mean(axis=0)
+            kept = len(scored)
+            if self._same_as_any((moved, centre), (placed[:kept], centres[:kept])):
                 continue
-            placed[len(scored)] = moved
+            placed[kept], centres[kept] = moved, centre
             scored.append((score, z, k, full))
             if len(scored) == max_candidates:
                 break
@@ -723,18 +726,33 @@ class IFMIRegistrar:
         return out
 
     @staticmethod
-    def _same_as_any(a: NDArray[np.float64], others: NDArray[np.float64]) -> bool:
+    def _same_as_any(
+        a: tuple[NDArray[np.float64], NDArray[np.float64]],
+        others: tuple[NDArray[np.float64], NDArray[np.float64]],
+    ) -> bool:
         """Whether the placement ``a`` (N, 2) of the moving points lies within a cell of one
         of ``others`` (K, N, 2) on average (mean distance of the points under 1).
 
-        All K comparisons in one pass: the squared distances as one ``(K * N, 2)``
-        product and each placement's mean a reduction of its own row, the same sums in the
-        same order as comparing the pairs one at a time.
+        Each placement comes with its centroid (shape (2,), of ``others`` (K, 2)). The mean
+        distance of two placements is at least the distance of their centroids (the norm
+        of the mean difference is at most the mean of the norms), so a placement whose
+        centroid is more than ``1 + 1e-6`` from ``a``'s is not within a cell: the rounding
+        of either mean is some 1e-12 of it, far below the margin. The others are compared
+        in one pass: the squared distances as one ``(K * N, 2)`` product and each
+        placement's mean a reduction of its own row, the same sums in the same order as
+        comparing the pairs one at a time.
         """
-        if others.shape[0] == 0:
+        points, centre = a
+        placements, centres = others
+        if placements.shape[0] == 0:
             return False
-        d = (a - others).reshape(-1, 2)
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(others.shape[:2])
+        gap = centres - centre
+        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= (1.0 + 1e-6) ** 2)
+        if near.size == 0:
+            return False
+        close = placements.take(near, axis=0)
+        d = (points - close).reshape(-1, 2)
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(close.shape[:2])
         return bool((np.mean(dist, axis=1) < 1.0).any())
 
     @staticmethod
