@@ -73,7 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import point_norms, take_rows
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
@@ -353,7 +353,7 @@ def _distinct(
     placed = np.stack([candidates[int(c)].apply(sample) for c in mine])  # (M, S, 2)
     kept: list[int] = []
     for q in range(mine.size):
-        if all(float(np.linalg.norm(placed[q] - placed[k], axis=1).max()) > SAME_FIT for k in kept):
+        if all(float(point_norms(placed[q] - placed[k]).max()) > SAME_FIT for k in kept):
             kept.append(q)
     distinct = mine[kept]
     explained = np.count_nonzero(offered[distinct] & open_cells, axis=1)
