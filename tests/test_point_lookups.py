@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from brokenness._points import cells_at, point_norms, take_rows
+from brokenness._points import cells_at, point_norms, squared_norms, take_rows
 from brokenness.measure import recovery
 
 
@@ -20,6 +20,8 @@ def test_point_norms_are_numpy_norms(seed: int) -> None:
     got = point_norms(offsets)
     assert got.shape == shape[:-1]
     assert got.tobytes() == np.linalg.norm(offsets, axis=-1).tobytes()
+    squares = squared_norms(offsets)
+    assert squares.tobytes() == np.einsum("...i,...i->...", offsets, offsets).tobytes()
 
 
 @pytest.mark.parametrize("seed", range(20))

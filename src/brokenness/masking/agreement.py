@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .._points import squared_norms
 from ..errors import MapError
 from ..grid import UNKNOWN, OccupancyMap
 from .distance import (
@@ -199,8 +200,7 @@ class ReferenceIndex:
         label = sample_at(self.nearest_occupied, p, -1.0, nearest=True)
         idx = label.astype(np.intp)
         out = self.occupied_points.take(np.maximum(idx, 0), axis=0)
-        d = out - p
-        far = np.einsum("ij,ij->i", d, d) > max_distance * max_distance
+        far = squared_norms(out - p) > max_distance * max_distance
         return out, ~(far | (idx < 0))
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:

@@ -69,7 +69,7 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import squared_norms, take_rows
 from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
@@ -738,21 +738,20 @@ class IFMIRegistrar:
         of the mean difference is at most the mean of the norms), so a placement whose
         centroid is more than ``1 + 1e-6`` from ``a``'s is not within a cell: the rounding
         of either mean is some 1e-12 of it, far below the margin. The others are compared
-        in one pass: the squared distances as one ``(K * N, 2)`` product and each
-        placement's mean a reduction of its own row, the same sums in the same order as
-        comparing the pairs one at a time.
+        in one pass: the squared distances as sums of two squares
+        (:func:`~brokenness._points.squared_norms`) and each placement's mean a reduction
+        of its own row, the same sums in the same order as comparing the pairs one at a
+        time.
         """
         points, centre = a
         placements, centres = others
         if placements.shape[0] == 0:
             return False
-        gap = centres - centre
-        near = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= (1.0 + 1e-6) ** 2)
+        near = np.flatnonzero(squared_norms(centres - centre) <= (1.0 + 1e-6) ** 2)
         if near.size == 0:
             return False
         close = placements.take(near, axis=0)
-        d = (points - close).reshape(-1, 2)
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(close.shape[:2])
+        dist = np.sqrt(squared_norms(points - close))  # (K, N)
         return bool((np.mean(dist, axis=1) < 1.0).any())
 
     @staticmethod
