@@ -167,10 +167,10 @@ def settle(
     added: list[Found] = []
     alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
-        covered = agree.sum(axis=0)
+        covered = _column_counts(agree)
         explained = int(np.count_nonzero(covered))
         best_gain, best, emptied = 0, None, _NO_CELLS
-        alone = np.count_nonzero(agree & (covered == 1), axis=1)  # cells only each explains
+        alone = _row_counts(agree & (covered == 1))  # cells only each explains
         for j in range(len(transforms)):
             mine = np.flatnonzero(seeds_arr == j)
             if mine.size == 0:
@@ -179,7 +179,7 @@ def settle(
             others = rest > 0
             near = mine[mine < local]
             if near.size:
-                gains = np.count_nonzero(others | offered[near], axis=1) - explained
+                gains = _row_counts(others | offered[near]) - explained
                 k = int(np.argmax(gains))
                 if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
@@ -259,12 +259,12 @@ def _rival_gain(
     """
     rest, others, explained = without
     after = rest + offered
-    alone_after = np.count_nonzero(agree & (after == 1), axis=1)
+    alone_after = _row_counts(agree & (after == 1))
     emptied = (alone >= settings.min_cells) & (alone_after < settings.min_cells)
     emptied[j] = False
     redundant = np.flatnonzero(emptied)
     if redundant.size:
-        after = after - agree[redundant].sum(axis=0)
+        after = after - _column_counts(agree[redundant])
     gain = int(np.count_nonzero(after)) - explained
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
@@ -291,7 +291,7 @@ def _best_split(
     other's transform (the recursion's merge test,
     :func:`~brokenness.measure.partitions.merge_target`: the two are off from each other).
     """
-    covered = agree.sum(axis=0)
+    covered = _column_counts(agree)
     p0 = index.chance_agreement(settings.threshold)
     best, best_gain = None, 0
     for j in range(agree.shape[0]):
@@ -306,7 +306,7 @@ def _best_split(
         some = halves.any(axis=0)  # open cells some half explains (the others count nowhere)
         halves, open_at = halves[:, some], open_at[some]
         # both[x, y]: the open cells halves x and y both explain
-        both = np.stack([np.count_nonzero(halves & row, axis=1) for row in halves])
+        both = np.stack([_row_counts(halves & row) for row in halves])
         counts = np.diagonal(both)
         only = counts[:, None] - both  # only[x, y]: cells x explains and y does not
         gain = counts[:, None] + counts[None, :] - both - counts[0]
@@ -356,7 +356,7 @@ def _distinct(
         if all(float(point_norms(placed[q] - placed[k]).max()) > SAME_FIT for k in kept):
             kept.append(q)
     distinct = mine[kept]
-    explained = np.count_nonzero(offered[distinct] & open_cells, axis=1)
+    explained = _row_counts(offered[distinct] & open_cells)
     order = np.lexsort((distinct, -explained))[:MAX_SPLIT_REFITS]
     return np.sort(distinct[order])
 
@@ -373,6 +373,21 @@ def _explains(
 
 
 _NO_CELLS = np.zeros(0, dtype=np.intp)
+
+
+def _row_counts(mask: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """``numpy.count_nonzero(mask, axis=1)`` of a 2D mask: one count a row (numpy's count
+    along an axis sums the cells as integers, several times the cost on rows of a map's
+    cells)."""
+    return np.array([np.count_nonzero(row) for row in mask], dtype=np.intp)
+
+
+def _column_counts(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """``mask.sum(axis=0)`` of a 2D mask (how many rows hold each cell), summed as bytes
+    while fewer than 256 rows cannot overflow them."""
+    if mask.shape[0] >= 256:
+        return np.asarray(mask.sum(axis=0), dtype=np.int64)
+    return np.add.reduce(mask.view(np.uint8), axis=0, dtype=np.uint8).astype(np.int64)
 
 
 def _candidates(
