@@ -231,10 +231,10 @@ def _turn_offsets(
 ) -> None:
     """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given.
 
-    Each point is ``(c dx - s dy + x0, s dx + c dy + y0)``, in float64. With ``pairs``, the
-    rows of the rest of the fan whose angles are negatives of each other, whose cosines
-    are the same and whose sines are negated, bit for bit: the turn by ``-a`` is then the
-    sum and the difference of the same products as the turn by ``a``, exactly
+    Each point is ``(c dx - s dy + x0, s dx + c dy + y0)``, in float64, then rounded. With
+    ``pairs``, the rows of the rest of the fan whose angles are negatives of each other,
+    whose cosines are the same and whose sines are negated, bit for bit: the turn by ``-a``
+    is then the sum and the difference of the same products as the turn by ``a``, exactly
     (``c dx - (-s) dy = c dx + s dy`` and ``(-s) dx + c dy = c dy - s dx``), half the
     products. Every row of ``out`` must be in one of the two sets.
     """
@@ -246,12 +246,15 @@ def _turn_offsets(
             return
     dx, dy = offsets
     # c dx - s dy + x0 and s dx + c dy + y0 in float64 (one temporary each), then rounded
+    # (an add into the float32 planes would buffer, and copy the pivot into its buffers)
     x = c * dx
     x -= s * dy
-    np.add(x, pivot[0], out=out[0])
+    x += pivot[0]
+    out[0][...] = x
     y = s * dx
     y += c * dy
-    np.add(y, pivot[1], out=out[1])
+    y += pivot[1]
+    out[1][...] = y
 
 
 def _turn_pairs(
@@ -266,12 +269,19 @@ def _turn_pairs(
     sines) into the planes ``first`` and by the ``-a`` into the rows ``neg`` of ``out``."""
     dx, dy = offsets
     c, s = trig
+    x0, y0 = pivot[0], pivot[1]
     cdx, sdy = c * dx, s * dy
-    np.add(cdx - sdy, pivot[0], out=first[0])
-    np.add(cdx + sdy, pivot[0], out=out[0][neg])
+    first[0][...] = _plus(cdx - sdy, x0)
+    out[0][neg] = _plus(cdx + sdy, x0)
     sdx, cdy = s * dx, c * dy
-    np.add(sdx + cdy, pivot[1], out=first[1])
-    np.add(cdy - sdx, pivot[1], out=out[1][neg])
+    first[1][...] = _plus(sdx + cdy, y0)
+    out[1][neg] = _plus(cdy - sdx, y0)
+
+
+def _plus(values: NDArray[np.float64], shift: np.float64) -> NDArray[np.float64]:
+    """``values + shift``, in place (``values`` is a temporary of the caller)."""
+    values += shift
+    return values
 
 
 def _soft_scores(
