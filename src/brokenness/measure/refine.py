@@ -384,10 +384,8 @@ def polish_transform(
             my[2:4] = ys
             mx[4:6] = xs
             fresh = False
-        np.add(xs, shift_step, out=mx[2])
-        np.subtract(xs, shift_step, out=mx[3])
-        np.add(ys, shift_step, out=my[4])
-        np.subtract(ys, shift_step, out=my[5])
+        mx[2], mx[3] = xs + shift_step, xs - shift_step
+        my[4], my[5] = ys + shift_step, ys - shift_step
         scores = _soft_scores_xy(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
