@@ -882,13 +882,10 @@ class IFMIRegistrar:
         rows, cols = surface.shape
         i = int(np.argmax(surface))
         r, c = divmod(i, cols)
-        v = float(surface[r, c])
-        oy = _spectral.parabolic_offset(
-            float(surface[(r - 1) % rows, c]), v, float(surface[(r + 1) % rows, c])
-        )
-        ox = _spectral.parabolic_offset(
-            float(surface[r, (c - 1) % cols]), v, float(surface[r, (c + 1) % cols])
-        )
+        at = surface.item  # the cells as Python floats (exact), one lookup each
+        v = at(r, c)
+        oy = _spectral.parabolic_offset(at((r - 1) % rows, c), v, at((r + 1) % rows, c))
+        ox = _spectral.parabolic_offset(at(r, (c - 1) % cols), v, at(r, (c + 1) % cols))
         mean, std = level
         z = (v - mean) / std if std > 0 else 0.0
         noise = 2.5 * math.sqrt(2.0 * math.log(surface.size))
