@@ -103,9 +103,9 @@ SAME_FIT = 1.0
 #: within this many cells (half a tile): parts shifted farther than the refinement reaches.
 MAX_SHIFT = TILE_SIDE // 2
 #: ... counted on at most this many cells (an even stride of them), in chunks of
-#: ``_SHIFT_CHUNK`` cells (bounded temporaries).
+#: ``_SHIFT_CHUNK`` cells (bounded temporaries; a chunk's counts fit in a byte).
 SHIFT_SAMPLE = 1000
-_SHIFT_CHUNK = 256
+_SHIFT_CHUNK = 255
 #: At most this many distinct refits of a partition are paired in the search for a split.
 MAX_SPLIT_REFITS = 32
 
@@ -501,16 +501,15 @@ def _shift_search(
     window[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0] = within(
         index.occupied_distance[cy0:cy1, cx0:cx1], threshold
     )
-    flat = window.ravel()
+    flat = window.ravel().view(np.uint8)  # 0/1 bytes: a chunk's counts summed as bytes
     at = (moved[:, 1] - y0) * width + (moved[:, 0] - x0)
 
     def counted(shifts: NDArray[np.int64]) -> NDArray[np.int64]:
         offsets = shifts[:, 0] * width + shifts[:, 1]
         counts = np.zeros(offsets.size, dtype=np.int64)
         for start in range(0, at.size, _SHIFT_CHUNK):
-            counts += flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]).sum(
-                axis=0
-            )
+            hits = flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :])
+            counts += np.add.reduce(hits, axis=0, dtype=np.uint8)
         return counts
 
     # every other shift first (a cell agrees within ``threshold``, so a part's peak is
