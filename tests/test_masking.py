@@ -126,6 +126,36 @@ def test_sample_at_reads_a_uint16_map_as_its_float32_values(shape):
                 np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("shape", [(300, 300), (40, 700), (1, 50), (500, 900)])
+def test_sample_xy_equals_sample_at_of_the_stacked_points(shape):
+    # the coordinates as two planes: the same samples as the two-channel points, bit for bit
+    # (float32 and uint16 maps, bilinear and nearest, on and off the grid, every layout)
+    from brokenness.masking.distance import compact_distance_map, sample_at, sample_xy
+
+    rng = np.random.default_rng(len(shape) + shape[0])
+    mask = np.zeros(shape, bool)
+    mask[rng.integers(0, shape[0], 30), rng.integers(0, shape[1], 30)] = True
+    fields = (
+        manhattan_distance_map(mask),
+        compact_distance_map(mask),
+        rng.uniform(0, 40, shape).astype(np.float32),  # not whole numbers
+    )
+    points = _sample_points(rng, shape).astype(np.float32)
+    wide = rng.uniform(-50, max(shape) + 50, (33_000, 2)).astype(np.float32)  # > OpenCV's side
+    layouts = (points, points[:5], points[-4000:].reshape(2, 2000, 2), wide, points[:0])
+    for field in fields:
+        for pts in layouts:
+            x, y = pts[..., 0].copy(), pts[..., 1].copy()
+            for outside in (3.0, 1002.5):
+                for nearest in (False, True):
+                    a = sample_at(field, pts, outside, nearest=nearest)
+                    b = sample_xy(field, x, y, outside, nearest=nearest)
+                    assert a.shape == b.shape == x.shape and b.dtype == np.float32
+                    assert a.tobytes() == b.tobytes()
+    with pytest.raises(ValueError):
+        sample_xy(fields[0], points[:3, 0].copy(), points[:2, 1].copy(), 0.0)
+
+
 def test_reference_index_keeps_large_maps_compact(monkeypatch):
     import brokenness.masking.agreement as agreement
 
@@ -212,6 +242,26 @@ def test_nearest_points_matches_a_kd_tree():
     assert np.all(np.linalg.norm(got[found] - pts[found], axis=1) <= 4.0)
     assert np.count_nonzero(found != (inside & reach)) <= 0.01 * len(pts)  # ties only
     assert not found[~inside].any()
+
+
+@pytest.mark.parametrize("table", [True, False])
+def test_correspondences_are_the_finite_rows_of_nearest_points(table, monkeypatch):
+    # the lookup table's answer and the KD-tree's (a reference above the table's size)
+    import brokenness.masking.agreement as agreement
+
+    if not table:
+        monkeypatch.setattr(agreement, "_LOOKUP_TABLE_CELLS", 10)
+    rng = np.random.default_rng(5)
+    states = np.where(rng.random((90, 120)) < 0.03, 1, 0).astype(np.int8)
+    index = ReferenceIndex.build(OccupancyMap(states))
+    pts = rng.random((3000, 2)) * [160, 130] - 20  # some off the grid
+    for reach in (0.5, 4.0):
+        every = index.nearest_points(pts, reach)
+        rows, cells = index.correspondences(pts, reach)
+        finite = np.flatnonzero(np.isfinite(every[:, 0]))
+        assert rows.dtype == np.intp and 0 < rows.size < len(pts)
+        np.testing.assert_array_equal(rows, finite)
+        assert cells.tobytes() == every[finite].tobytes()
 
 
 def test_picture_distance_far_apart_kinds_need_several_saturated_passes():

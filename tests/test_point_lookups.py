@@ -7,8 +7,21 @@ import cv2
 import numpy as np
 import pytest
 
-from brokenness._points import cells_at, take_rows
+from brokenness._points import cells_at, point_norms, squared_norms, take_rows
 from brokenness.measure import recovery
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_point_norms_are_numpy_norms(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    shape = (*rng.integers(0, 30, size=int(rng.integers(1, 4))).tolist(), 2)
+    offsets = rng.normal(size=shape) * float(rng.choice([1e-3, 1.0, 1e3]))
+    offsets.reshape(-1)[:: max(1, offsets.size // 7)] = 0.0  # zeros among them
+    got = point_norms(offsets)
+    assert got.shape == shape[:-1]
+    assert got.tobytes() == np.linalg.norm(offsets, axis=-1).tobytes()
+    squares = squared_norms(offsets)
+    assert squares.tobytes() == np.einsum("...i,...i->...", offsets, offsets).tobytes()
 
 
 @pytest.mark.parametrize("seed", range(20))

@@ -492,3 +492,18 @@ def test_packed_sizes_are_even_and_fast() -> None:
     assert all(m % 2 == 0 and m >= n for n, m in zip(range(1, 400), sizes, strict=True))
     assert all(cv2.getOptimalDFTSize(m) == m for m in sizes)
     assert packed_size(121) == 128 and packed_size(315) == 320
+
+
+def test_same_placement_test_skips_far_centroids_without_changing_the_answer() -> None:
+    # the centroid bound only skips placements the full mean-distance test rejects
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        n, k = int(rng.integers(1, 300)), int(rng.integers(0, 8))
+        a = rng.uniform(-500, 3000, (n, 2))
+        scale = float(rng.choice([0.3, 0.9, 1.0, 1.1, 2.0, 5.0]))
+        others = a[None] + rng.normal(0, scale, (k, n, 2)) + rng.normal(0, scale, (k, 1, 2))
+        d = (a - others).reshape(-1, 2)
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(k, n)
+        full = bool((dist.mean(axis=1) < 1.0).any())
+        centres = others.mean(axis=1)
+        assert IFMIRegistrar._same_as_any((a, a.mean(axis=0)), (others, centres)) == full

@@ -86,3 +86,16 @@ def test_right_transforms_stay(reference: OccupancyMap) -> None:
     settled = settle(found, points, index, SETTINGS)
     for f, t, part in zip(settled, truths, (~right, right), strict=True):
         assert np.median(f.transform.displacement(t, points[part])) < 0.5
+
+
+@pytest.mark.parametrize("rows", [0, 1, 6, 255, 256, 300])
+def test_row_and_column_counts_are_numpys(rows: int) -> None:
+    from brokenness.measure.settle import _column_counts, _row_counts
+
+    rng = np.random.default_rng(rows)
+    mask = rng.random((rows, 777)) < 0.3
+    for m in (mask, mask[:, ::3], mask[::-1]):
+        counts = _row_counts(m)
+        assert counts.dtype == np.intp and np.array_equal(counts, np.count_nonzero(m, axis=1))
+        column = _column_counts(m)
+        assert column.dtype == np.int64 and np.array_equal(column, m.sum(axis=0))

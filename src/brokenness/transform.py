@@ -33,7 +33,10 @@ __all__ = ["RigidTransform", "wrap_angle"]
 
 def wrap_angle(angle: float) -> float:
     """Wrap an angle in radians to (-pi, pi]."""
-    wrapped = math.remainder(float(angle), 2.0 * math.pi)
+    value = float(angle)
+    if -math.pi < value <= math.pi:  # already wrapped (the usual case): the remainder is it
+        return value + 0.0  # no negative zero
+    wrapped = math.remainder(value, 2.0 * math.pi)
     if wrapped <= -math.pi:
         wrapped += 2.0 * math.pi
     return wrapped + 0.0  # no negative zero

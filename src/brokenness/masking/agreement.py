@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .._points import squared_norms
 from ..errors import MapError
 from ..grid import FREE, UNKNOWN, OccupancyMap
 from .distance import (
@@ -164,20 +165,49 @@ class ReferenceIndex:
             Points farther than this from every occupied cell get ``inf`` coordinates.
         """
         p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        nearest, found = self._nearest(p, max_distance)
+        nearest[~found] = np.inf
+        return nearest
+
+    def correspondences(
+        self, points: ArrayLike, max_distance: float
+    ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+        """The points within reach of an occupied reference cell, and those cells.
+
+        :meth:`nearest_points` as an ICP step uses it: ``(rows, cells)`` with ``rows`` the
+        indices (ascending) of the points whose :meth:`nearest_points` row is finite, and
+        ``cells`` those rows, shape ``(len(rows), 2)``.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 2)
+            Query points ``(x, y)``, as for :meth:`nearest_points`.
+        max_distance : float
+            As for :meth:`nearest_points`.
+        """
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        nearest, found = self._nearest(p, max_distance)
+        rows = np.flatnonzero(found)
+        return rows, nearest.take(rows, axis=0)
+
+    def _nearest(
+        self, p: NDArray[np.float64], max_distance: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """For each point of ``p`` (shape (N, 2)), an occupied reference cell (its nearest
+        one where the second array is ``True``: found within ``max_distance``; any
+        finite cell or ``inf`` elsewhere), see :meth:`nearest_points`."""
         if self.reference.states.size > _LOOKUP_TABLE_CELLS:
             out = np.full(p.shape, np.inf)
             dist, idx = self.tree.query(p, k=1, distance_upper_bound=max_distance)
             found = np.isfinite(dist)
             out[found] = self.occupied_points[np.asarray(idx)[found]]
-            return out
+            return out, found
         # nearest-cell lookup in one remap (cells off the grid read -1: no neighbour)
         label = sample_at(self.nearest_occupied, p, -1.0, nearest=True)
         idx = label.astype(np.intp)
         out = self.occupied_points.take(np.maximum(idx, 0), axis=0)
-        d = out - p
-        far = np.einsum("ij,ij->i", d, d) > max_distance * max_distance
-        out[far | (idx < 0)] = np.inf
-        return out
+        far = squared_norms(out - p) > max_distance * max_distance
+        return out, ~(far | (idx < 0))
 
     def occupied_agreement(self, points: ArrayLike, threshold: float) -> NDArray[np.bool_]:
         """Which (transformed) occupied map cells agree with the reference (Psi_2 <= c)."""

@@ -22,6 +22,7 @@ __all__ = [
     "lookup_distance",
     "manhattan_distance_map",
     "sample_at",
+    "sample_xy",
     "within",
 ]
 
@@ -219,6 +220,63 @@ def sample_at(
         flat = _whole_samples(whole, grid.reshape(-1, 2), outside, nearest=nearest)
         return flat.reshape(shape)
     out = _remap(field, grid, cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR, outside)
+    return np.asarray(out, dtype=np.float32).reshape(shape)
+
+
+def sample_xy(
+    field: DistanceMap,
+    x: NDArray[np.float32],
+    y: NDArray[np.float32],
+    outside: float,
+    *,
+    nearest: bool = False,
+) -> NDArray[np.float32]:
+    """:func:`sample_at` of the points whose coordinates are given as two arrays.
+
+    ``sample_xy(field, x, y, outside)`` is ``sample_at(field, np.stack([x, y], axis=-1),
+    outside)``, bit for bit: OpenCV rounds each coordinate in the same way whether its map
+    is one two-channel array or two one-channel planes. The planes spare a caller that
+    computes the coordinates one axis at a time the interleaving (strided stores) of the
+    points.
+
+    Parameters
+    ----------
+    field : ndarray of float32 or uint16, 2D
+        As for :func:`sample_at`.
+    x, y : ndarray of float32
+        The column and row coordinates of the points, of one shape.
+    outside : float
+        The value of points off the grid.
+    nearest : bool
+        As for :func:`sample_at`.
+
+    Returns
+    -------
+    ndarray of float32
+        The shape of ``x``.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` and ``y`` differ in shape.
+    """
+    if x.shape != y.shape:
+        raise ValueError(f"x and y differ in shape: {x.shape} and {y.shape}")
+    shape = x.shape
+    if x.size == 0:
+        return np.zeros(shape, dtype=np.float32)
+    cols = shape[-1] if x.ndim else 1
+    rows = x.size // cols
+    if field.dtype == np.uint16 or max(rows, cols) >= 32_000:  # sample_at's own layouts
+        return sample_at(field, np.stack([x, y], axis=-1), outside, nearest=nearest)
+    out = cv2.remap(
+        field,
+        np.ascontiguousarray(x, dtype=np.float32).reshape(rows, cols),
+        np.ascontiguousarray(y, dtype=np.float32).reshape(rows, cols),
+        cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=float(outside),
+    )
     return np.asarray(out, dtype=np.float32).reshape(shape)
 
 

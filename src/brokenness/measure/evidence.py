@@ -209,12 +209,15 @@ def contradiction(
     block_owner = np.full(coarse_shape, -1, dtype=np.int16)
     block_owner[py[is_source] // 2, px[is_source] // 2] = owner[is_source]
     is_block = block_owner >= 0
-    nearest = cv2.distanceTransformWithLabels(
-        np.logical_not(is_block).view(np.uint8),
-        cv2.DIST_L2,
-        cv2.DIST_MASK_5,
-        labelType=cv2.DIST_LABEL_PIXEL,
-    )[1]  # labels number the source blocks 1.. row-major, as boolean indexing lists them
+    nearest: NDArray[np.int32] = np.asarray(
+        cv2.distanceTransformWithLabels(
+            np.logical_not(is_block).view(np.uint8),
+            cv2.DIST_L2,
+            cv2.DIST_MASK_5,
+            labelType=cv2.DIST_LABEL_PIXEL,
+        )[1],
+        dtype=np.int32,
+    )  # labels number the source blocks 1.. row-major, as boolean indexing lists them
     owners_of_blocks = block_owner[is_block]
     del block_owner, is_block
     counted = np.zeros(k, np.int64)
@@ -224,7 +227,7 @@ def contradiction(
         rows, cols = np.divmod(clear[start : start + _CHUNK], sub_width)
         rows *= stride
         cols *= stride
-        owners = owners_of_blocks[nearest[rows // 2, cols // 2] - 1]
+        owners = owners_of_blocks.take(cells_at(nearest, rows // 2, cols // 2) - 1)
         pts = np.column_stack([cols + c0, rows + r0]).astype(np.float64)
         for j, f in enumerate(found):
             sel = owners == j

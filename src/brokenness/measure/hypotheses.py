@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import point_norms, take_rows
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate
 from ..transform import RigidTransform
@@ -110,7 +110,7 @@ def _refinements(
     pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
     fitted = refine_transform(
-        swept, sample, index.nearest_points, gate=threshold + 1.0, iterations=ICP_ITERATIONS
+        swept, sample, index.correspondences, gate=threshold + 1.0, iterations=ICP_ITERATIONS
     )
     polished = polish_transform(
         fitted, take_rows(sample, hard(fitted.apply(sample))), index.occupied_distance, threshold
@@ -133,7 +133,7 @@ def rivals(
     # every candidate's mean distance in one pass: each point's norm over its last axis and
     # each candidate's mean a reduction of its own row (the same sums, in the same order, as
     # one candidate at a time)
-    mean = np.linalg.norm(np.stack(moved) - at_best, axis=2).mean(axis=1)
+    mean = point_norms(np.stack(moved) - at_best).mean(axis=1)
     return [(c, m) for c, m, d in zip(candidates, moved, mean.tolist(), strict=True) if d > apart]
 
 

@@ -73,7 +73,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import point_norms, take_rows
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
@@ -428,7 +428,7 @@ def _new_ones(
 
     a = moved([c.transform for c in candidates])
     b = moved([f.transform for f in found])
-    apart = np.linalg.norm(a[:, None] - b[None], axis=2).mean(axis=2)  # (C, F)
+    apart = point_norms(np.moveaxis(a[:, None] - b[None], 2, -1)).mean(axis=2)  # (C, F)
     return [c for c, far in zip(candidates, (apart > tolerance).all(axis=1), strict=True) if far]
 
 

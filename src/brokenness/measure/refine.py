@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from ..masking.distance import DistanceMap, sample_at
+from ..masking.distance import DistanceMap, sample_at, sample_xy
 from ..transform import RigidTransform
 
 __all__ = [
@@ -57,21 +57,27 @@ def fit_rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> Rigid
         ``t`` minimising ``sum |t(source) - target|^2``.
     """
     # sums and cross-products as BLAS products: numpy's axis-0 reductions of (N, 2) arrays
-    # are several times slower, and ICP calls this on every iteration
+    # are several times slower, and ICP calls this on every iteration; the 2x2 algebra on
+    # Python floats (the same IEEE operations as numpy's, without its per-call overhead)
     ones = np.ones(source.shape[0])
     n = float(source.shape[0])
-    cs = (ones @ source) / n
-    ct = (ones @ target) / n
-    h = source.T @ target - n * (cs[:, None] * ct[None, :])  # 2x2 cross-covariance (times N)
-    angle = math.atan2(float(h[0, 1] - h[1, 0]), float(h[0, 0] + h[1, 1]))
+    sx, sy = (ones @ source).tolist()
+    tx, ty = (ones @ target).tolist()
+    csx, csy, ctx, cty = sx / n, sy / n, tx / n, ty / n
+    (h00, h01), (h10, h11) = (source.T @ target).tolist()  # cross-covariance (times N) ...
+    h00 -= n * (csx * ctx)  # ... less the centroids' part
+    h01 -= n * (csx * cty)
+    h10 -= n * (csy * ctx)
+    h11 -= n * (csy * cty)
+    angle = math.atan2(h01 - h10, h00 + h11)
     c, si = math.cos(angle), math.sin(angle)
-    return RigidTransform(angle, ct[0] - (c * cs[0] - si * cs[1]), ct[1] - (si * cs[0] + c * cs[1]))
+    return RigidTransform(angle, ctx - (c * csx - si * csy), cty - (si * csx + c * csy))
 
 
 def refine_transform(
     transform: RigidTransform,
     points: NDArray[np.float64],
-    nearest: Callable[[NDArray[np.float64], float], NDArray[np.float64]],
+    nearest: Callable[[NDArray[np.float64], float], tuple[NDArray[np.intp], NDArray[np.float64]]],
     *,
     gate: float,
     iterations: int = 20,
@@ -86,9 +92,10 @@ def refine_transform(
     points : ndarray, shape (N, 2)
         Occupied map cells to align (others' cells may be among them: the gate rejects them).
     nearest : callable
-        ``nearest(moved, gate)`` -> the nearest occupied reference cell of each moved point,
-        ``inf`` where none is within ``gate``
-        (:meth:`brokenness.masking.ReferenceIndex.nearest_points`).
+        ``nearest(moved, gate)`` -> ``(rows, cells)``: the indices (ascending) of the moved
+        points within ``gate`` of an occupied reference cell, and the nearest such cell of
+        each, shape ``(len(rows), 2)``
+        (:meth:`brokenness.masking.ReferenceIndex.correspondences`).
     gate : float
         Correspondences farther than this (cells) are ignored.
     iterations : int
@@ -106,11 +113,10 @@ def refine_transform(
     current = transform
     for _ in range(iterations):
         moved = current.apply(points)
-        matched = nearest(moved, gate)
-        inliers = np.flatnonzero(np.isfinite(matched[:, 0]))
+        inliers, matched = nearest(moved, gate)
         if inliers.size < 3:
             break
-        step = fit_rigid(moved.take(inliers, axis=0), matched.take(inliers, axis=0))
+        step = fit_rigid(moved.take(inliers, axis=0), matched)
         current = step.compose(current)
         if abs(step.rotation) < 1e-4 and math.hypot(step.tx, step.ty) < 1e-2:
             break
@@ -154,24 +160,58 @@ def sweep_rotation(
     deltas = [float(d) for d in np.radians(step_deg * np.arange(-n, n + 1)) if d != 0.0]
     moved = transform.apply(points)
     # the fan in the float32 of the lookup, each point rounded once from float64 as the
-    # lookup would round it (no float64 copy of the fan)
-    fan = np.empty((len(deltas) + 1, moved.shape[0], 2), dtype=np.float32)
-    fan[0] = moved
-    _turned(moved, pivot, deltas, out=fan[1:])
-    k = int(np.argmax(_soft_scores(distance_map, fan, threshold)))
+    # lookup would round it (no float64 copy of the fan), its columns and rows as two planes
+    fan = _planes(len(deltas) + 1, moved.shape[0])
+    fan[0][0], fan[1][0] = moved[:, 0], moved[:, 1]
+    # the turns ascend from -half_range to half_range: turn k from the end is the negative
+    # of turn k from the start
+    half = len(deltas) // 2
+    pairs = (slice(half, None), slice(half - 1, None, -1))
+    _turned(moved, pivot, _trig(deltas), (fan[0][1:], fan[1][1:]), pairs)
+    k = int(np.argmax(_soft_scores_xy(distance_map, fan, threshold)))
     # the first of equal scores: no turn wins ties
     return transform if k == 0 else _turn_about(pivot, deltas[k - 1]).compose(transform)
+
+
+#: Points as two planes of one shape: their columns ``x`` and their rows ``y`` (float32, as
+#: :func:`~brokenness.masking.distance.sample_xy` looks them up).
+_Planes = tuple[NDArray[np.float32], NDArray[np.float32]]
+
+
+def _planes(count: int, n: int) -> _Planes:
+    """Two empty ``(count, n)`` float32 planes: ``count`` sets of ``n`` points."""
+    return np.empty((count, n), dtype=np.float32), np.empty((count, n), dtype=np.float32)
+
+
+#: Two sets of rows of a fan of turns, ``(a, b)``: the angle of row ``b[i]`` is the
+#: negative of that of row ``a[i]``.
+_Pairs = tuple[slice, slice]
+
+
+def _trig(angles: list[float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The cosines and sines of ``angles``, each of shape ``(len(angles), 1)``."""
+    a = np.asarray(angles, dtype=np.float64)[:, None]
+    return np.cos(a), np.sin(a)
 
 
 def _turned(
     moved: NDArray[np.float64],
     pivot: NDArray[np.float64],
-    angles: list[float],
-    out: NDArray[np.floating] | None = None,
-) -> NDArray[np.floating]:
-    """``moved`` turned about ``pivot`` by each of ``angles``, shape ``(len(angles), N, 2)``
-    (written to ``out`` if given: computed in float64, then rounded to ``out``'s type)."""
-    return _turn_offsets(_offsets(moved, pivot), pivot, angles, out)
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
+    out: _Planes,
+    pairs: _Pairs | None = None,
+) -> None:
+    """Write ``moved`` turned about ``pivot`` by each of the angles whose :func:`_trig` is
+    given to the planes ``out`` (each ``(len(angles), N)``: computed in float64, then
+    rounded to float32); ``pairs`` as for :func:`_turn_offsets`."""
+    _turn_offsets(_offsets(moved, pivot), pivot, trig, out, pairs)
+
+
+def _columns(
+    points: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The columns ``x`` and ``y`` of ``points`` (shape (N, 2)), each contiguous."""
+    return np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1])
 
 
 def _offsets(
@@ -185,25 +225,81 @@ def _offsets(
 def _turn_offsets(
     offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
     pivot: NDArray[np.float64],
-    angles: list[float],
-    out: NDArray[np.floating] | None = None,
-) -> NDArray[np.floating]:
-    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given."""
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
+    out: _Planes,
+    pairs: _Pairs | None = None,
+) -> None:
+    """:func:`_turned` of the points whose :func:`_offsets` from ``pivot`` are given.
+
+    Each point is ``(c dx - s dy + x0, s dx + c dy + y0)``, in float64, then rounded. With
+    ``pairs``, the rows of the rest of the fan whose angles are negatives of each other,
+    whose cosines are the same and whose sines are negated, bit for bit: the turn by ``-a``
+    is then the sum and the difference of the same products as the turn by ``a``, exactly
+    (``c dx - (-s) dy = c dx + s dy`` and ``(-s) dx + c dy = c dy - s dx``), half the
+    products. Every row of ``out`` must be in one of the two sets.
+    """
+    c, s = trig
+    if pairs is not None:
+        pos, neg = pairs
+        if c[neg].tobytes() == c[pos].tobytes() and s[neg].tobytes() == (-s[pos]).tobytes():
+            _turn_pairs(offsets, pivot, (c[pos], s[pos]), (out[0][pos], out[1][pos]), out, neg)
+            return
     dx, dy = offsets
-    a = np.asarray(angles, dtype=np.float64)[:, None]
-    c, s = np.cos(a), np.sin(a)
-    if out is None:
-        out = np.empty((a.shape[0], dx.shape[0], 2))
-    out[:, :, 0] = c * dx - s * dy + pivot[0]
-    out[:, :, 1] = s * dx + c * dy + pivot[1]
-    return out
+    # c dx - s dy + x0 and s dx + c dy + y0 in float64 (one temporary each), then rounded
+    # (an add into the float32 planes would buffer, and copy the pivot into its buffers)
+    x = c * dx
+    x -= s * dy
+    x += pivot[0]
+    out[0][...] = x
+    y = s * dx
+    y += c * dy
+    y += pivot[1]
+    out[1][...] = y
+
+
+def _turn_pairs(
+    offsets: tuple[NDArray[np.float64], NDArray[np.float64]],
+    pivot: NDArray[np.float64],
+    trig: tuple[NDArray[np.float64], NDArray[np.float64]],
+    first: _Planes,
+    out: _Planes,
+    neg: slice,
+) -> None:
+    """:func:`_turn_offsets` of the turns by the angles ``a`` of ``trig`` (their cosines and
+    sines) into the planes ``first`` and by the ``-a`` into the rows ``neg`` of ``out``."""
+    dx, dy = offsets
+    c, s = trig
+    x0, y0 = pivot[0], pivot[1]
+    cdx, sdy = c * dx, s * dy
+    first[0][...] = _plus(cdx - sdy, x0)
+    out[0][neg] = _plus(cdx + sdy, x0)
+    sdx, cdy = s * dx, c * dy
+    first[1][...] = _plus(sdx + cdy, y0)
+    out[1][neg] = _plus(cdy - sdx, y0)
+
+
+def _plus(values: NDArray[np.float64], shift: np.float64) -> NDArray[np.float64]:
+    """``values + shift``, in place (``values`` is a temporary of the caller)."""
+    values += shift
+    return values
 
 
 def _soft_scores(
     distance_map: DistanceMap, moved: NDArray[np.floating], threshold: float
 ) -> NDArray[np.float64]:
     """:func:`soft_agreement` of each set of moved points, ``moved`` of shape (K, N, 2)."""
-    d = sample_at(distance_map, moved, threshold + 1.0)  # shape (K, N)
+    return _scores(sample_at(distance_map, moved, threshold + 1.0), threshold)
+
+
+def _soft_scores_xy(
+    distance_map: DistanceMap, moved: _Planes, threshold: float
+) -> NDArray[np.float64]:
+    """:func:`_soft_scores` of the points given as two ``(K, N)`` planes."""
+    return _scores(sample_xy(distance_map, moved[0], moved[1], threshold + 1.0), threshold)
+
+
+def _scores(d: NDArray[np.float32], threshold: float) -> NDArray[np.float64]:
+    """:func:`soft_agreement` of each row of the samples ``d`` (shape (K, N))."""
     return np.asarray(np.maximum(threshold + 1.0 - d, 0.0).sum(axis=1, dtype=np.float64))
 
 
@@ -261,9 +357,14 @@ def polish_transform(
     rot_step, shift_step = math.radians(0.4), 1.0
     evaluations = 0
     # the moves in the float32 of the lookup: each coordinate computed in float64 and
-    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy)
-    moves = np.empty((6, moved.shape[0], 2), dtype=np.float32)
-    offsets, fresh = _offsets(moved, pivot), True  # fresh: moved changed since the last round
+    # rounded once, as the lookup rounds a float64 one (the same samples, no float64 copy),
+    # their columns and rows as two planes
+    moves = _planes(6, moved.shape[0])
+    mx, my = moves
+    # moved's columns (contiguous), and their offsets from the pivot
+    xs, ys = _columns(moved)
+    offsets = (xs - pivot[0], ys - pivot[1])
+    fresh = True  # moved changed since the last round
     while evaluations < max_evaluations and (rot_step > math.radians(0.02) or shift_step > 0.05):
         # the six compass moves around the current best (turns about the pivot, shifts in x
         # and y), scored together; the best one is taken if it improves, else the steps
@@ -276,24 +377,24 @@ def polish_transform(
             (0.0, 0.0, shift_step),
             (0.0, 0.0, -shift_step),
         )
-        _turn_offsets(offsets, pivot, [rot_step, -rot_step], out=moves[:2])
+        _turn_offsets(offsets, pivot, _trig([rot_step, -rot_step]), (mx[:2], my[:2]))
         # the four shifts, each along its own axis (float64 sums, rounded into the moves);
         # the other axis is moved's, written again only when moved has changed
         if fresh:
-            moves[2:4, :, 1] = moved[:, 1]
-            moves[4:6, :, 0] = moved[:, 0]
+            my[2:4] = ys
+            mx[4:6] = xs
             fresh = False
-        both = np.array([[shift_step], [-shift_step]])  # x + (-s) is x - s, exactly
-        np.add(moved[:, 0], both, out=moves[2:4, :, 0])
-        np.add(moved[:, 1], both, out=moves[4:6, :, 1])
-        scores = _soft_scores(distance_map, moves, threshold)
+        mx[2], mx[3] = xs + shift_step, xs - shift_step
+        my[4], my[5] = ys + shift_step, ys - shift_step
+        scores = _soft_scores_xy(distance_map, moves, threshold)
         evaluations += len(steps)
         k = int(np.argmax(scores))
         if scores[k] > best_score:
             best = _turn_about(pivot, *steps[k]).compose(best)
             best_score = float(scores[k])
-            moved = best.apply(points)
-            offsets, fresh = _offsets(moved, pivot), True
+            xs, ys = _columns(best.apply(points))
+            offsets = (xs - pivot[0], ys - pivot[1])
+            fresh = True
         else:
             rot_step *= 0.5
             shift_step *= 0.5

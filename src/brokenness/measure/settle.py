@@ -73,7 +73,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import point_norms, take_rows
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
@@ -103,9 +103,9 @@ SAME_FIT = 1.0
 #: within this many cells (half a tile): parts shifted farther than the refinement reaches.
 MAX_SHIFT = TILE_SIDE // 2
 #: ... counted on at most this many cells (an even stride of them), in chunks of
-#: ``_SHIFT_CHUNK`` cells (bounded temporaries).
+#: ``_SHIFT_CHUNK`` cells (bounded temporaries; a chunk's counts fit in a byte).
 SHIFT_SAMPLE = 1000
-_SHIFT_CHUNK = 256
+_SHIFT_CHUNK = 255
 #: At most this many distinct refits of a partition are paired in the search for a split.
 MAX_SPLIT_REFITS = 32
 
@@ -167,23 +167,26 @@ def settle(
     added: list[Found] = []
     alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
-        covered = agree.sum(axis=0)
+        covered = _column_counts(agree)
         explained = int(np.count_nonzero(covered))
         best_gain, best, emptied = 0, None, _NO_CELLS
-        alone = np.count_nonzero(agree & (covered == 1), axis=1)  # cells only each explains
+        alone = _row_counts(agree & (covered == 1))  # cells only each explains
         for j in range(len(transforms)):
             mine = np.flatnonzero(seeds_arr == j)
             if mine.size == 0:
                 continue
-            others = (covered - agree[j]) > 0
+            rest = covered - agree[j]  # the partitions but j that explain each cell
+            others = rest > 0
             near = mine[mine < local]
             if near.size:
-                gains = np.count_nonzero(others | offered[near], axis=1) - explained
+                gains = _row_counts(others | offered[near]) - explained
                 k = int(np.argmax(gains))
                 if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
-                gain, redundant = _rival_gain(j, offered[c], agree, covered, alone, p0, settings)
+                gain, redundant = _rival_gain(
+                    j, offered[c], agree, (rest, others, explained), alone, p0, settings
+                )
                 if gain > best_gain:
                     best_gain, best, emptied = gain, (j, int(c)), redundant
         if best is not None:
@@ -233,15 +236,16 @@ def _rival_gain(
     j: int,
     offered: NDArray[np.bool_],
     agree: NDArray[np.bool_],
-    covered: NDArray[np.int64],
+    without: tuple[NDArray[np.int64], NDArray[np.bool_], int],
     alone: NDArray[np.intp],
     p0: float,
     settings: Settings,
 ) -> tuple[int, NDArray[np.intp]]:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
-    gains, and the partitions it leaves redundant (step 3). ``covered`` counts the
-    partitions that explain each cell, and ``alone`` is, per partition, its cells no other
-    explains.
+    gains, and the partitions it leaves redundant (step 3). ``without`` is what the
+    partitions explain without ``j`` (the same for every rival of ``j``): per cell how many
+    of the others explain it, whether any does, and how many cells all the partitions
+    explain; ``alone`` is, per partition, its cells no other explains.
 
     The gain is the count the recursion maximises: cells explained by some partition. A
     partition that had at least ``min_cells`` cells no other explains, and has fewer once
@@ -253,15 +257,15 @@ def _rival_gain(
     partition with the smallest partition's cells, a cost per partition, replaced two small
     partitions by one transform that explained fewer cells: a degree one short.)
     """
-    after = covered - agree[j] + offered
-    others = (covered - agree[j]) > 0
-    alone_after = np.count_nonzero(agree & (after == 1), axis=1)
+    rest, others, explained = without
+    after = rest + offered
+    alone_after = _row_counts(agree & (after == 1))
     emptied = (alone >= settings.min_cells) & (alone_after < settings.min_cells)
     emptied[j] = False
     redundant = np.flatnonzero(emptied)
     if redundant.size:
-        after = after - agree[redundant].sum(axis=0)
-    gain = int(np.count_nonzero(after)) - int(np.count_nonzero(covered))
+        after = after - _column_counts(agree[redundant])
+    gain = int(np.count_nonzero(after)) - explained
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
     return (gain, redundant) if gain > margin else (0, _NO_CELLS)
@@ -287,7 +291,7 @@ def _best_split(
     other's transform (the recursion's merge test,
     :func:`~brokenness.measure.partitions.merge_target`: the two are off from each other).
     """
-    covered = agree.sum(axis=0)
+    covered = _column_counts(agree)
     p0 = index.chance_agreement(settings.threshold)
     best, best_gain = None, 0
     for j in range(agree.shape[0]):
@@ -302,7 +306,7 @@ def _best_split(
         some = halves.any(axis=0)  # open cells some half explains (the others count nowhere)
         halves, open_at = halves[:, some], open_at[some]
         # both[x, y]: the open cells halves x and y both explain
-        both = np.stack([np.count_nonzero(halves & row, axis=1) for row in halves])
+        both = np.stack([_row_counts(halves & row) for row in halves])
         counts = np.diagonal(both)
         only = counts[:, None] - both  # only[x, y]: cells x explains and y does not
         gain = counts[:, None] + counts[None, :] - both - counts[0]
@@ -349,10 +353,10 @@ def _distinct(
     placed = np.stack([candidates[int(c)].apply(sample) for c in mine])  # (M, S, 2)
     kept: list[int] = []
     for q in range(mine.size):
-        if all(float(np.linalg.norm(placed[q] - placed[k], axis=1).max()) > SAME_FIT for k in kept):
+        if all(float(point_norms(placed[q] - placed[k]).max()) > SAME_FIT for k in kept):
             kept.append(q)
     distinct = mine[kept]
-    explained = np.count_nonzero(offered[distinct] & open_cells, axis=1)
+    explained = _row_counts(offered[distinct] & open_cells)
     order = np.lexsort((distinct, -explained))[:MAX_SPLIT_REFITS]
     return np.sort(distinct[order])
 
@@ -369,6 +373,21 @@ def _explains(
 
 
 _NO_CELLS = np.zeros(0, dtype=np.intp)
+
+
+def _row_counts(mask: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """``numpy.count_nonzero(mask, axis=1)`` of a 2D mask: one count a row (numpy's count
+    along an axis sums the cells as integers, several times the cost on rows of a map's
+    cells)."""
+    return np.array([np.count_nonzero(row) for row in mask], dtype=np.intp)
+
+
+def _column_counts(mask: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """``mask.sum(axis=0)`` of a 2D mask (how many rows hold each cell), summed as bytes
+    while fewer than 256 rows cannot overflow them."""
+    if mask.shape[0] >= 256:
+        return np.asarray(mask.sum(axis=0), dtype=np.int64)
+    return np.add.reduce(mask.view(np.uint8), axis=0, dtype=np.uint8).astype(np.int64)
 
 
 def _candidates(
@@ -482,16 +501,15 @@ def _shift_search(
     window[cy0 - y0 : cy1 - y0, cx0 - x0 : cx1 - x0] = within(
         index.occupied_distance[cy0:cy1, cx0:cx1], threshold
     )
-    flat = window.ravel()
+    flat = window.ravel().view(np.uint8)  # 0/1 bytes: a chunk's counts summed as bytes
     at = (moved[:, 1] - y0) * width + (moved[:, 0] - x0)
 
     def counted(shifts: NDArray[np.int64]) -> NDArray[np.int64]:
         offsets = shifts[:, 0] * width + shifts[:, 1]
         counts = np.zeros(offsets.size, dtype=np.int64)
         for start in range(0, at.size, _SHIFT_CHUNK):
-            counts += flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :]).sum(
-                axis=0
-            )
+            hits = flat.take(at[start : start + _SHIFT_CHUNK, None] + offsets[None, :])
+            counts += np.add.reduce(hits, axis=0, dtype=np.uint8)
         return counts
 
     # every other shift first (a cell agrees within ``threshold``, so a part's peak is
@@ -526,7 +544,7 @@ def _refit(
         return transform
     pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(swept, cells, index.nearest_points, gate=settings.loose)
+    fitted = refine_transform(swept, cells, index.correspondences, gate=settings.loose)
     polished = polish_transform(
         fitted,
         take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),

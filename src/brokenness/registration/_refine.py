@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._points import take_rows
-from ..masking.distance import sample_at
+from ..masking.distance import sample_at, sample_xy
 
 __all__ = [
     "distance_field",
@@ -214,9 +214,12 @@ def refine_rigid_many(
     centre = points.mean(axis=0)
     cx = points[:, 0] - centre[0]
     cy = points[:, 1] - centre[1]
-    theta = np.array([math.atan2(m[1, 0], m[0, 0]) for m in matrices])
-    mx = np.array([m[0, 0] * centre[0] + m[0, 1] * centre[1] + m[0, 2] for m in matrices])
-    my = np.array([m[1, 0] * centre[0] + m[1, 1] * centre[1] + m[1, 2] for m in matrices])
+    # each transform's angle and where it puts the centre, as Python floats (updated one
+    # transform at a time below: numpy's scalar indexing would cost more than the algebra)
+    c0, c1 = float(centre[0]), float(centre[1])
+    theta = [math.atan2(m[1, 0], m[0, 0]) for m in matrices]
+    mx = [float(m[0, 0]) * c0 + float(m[0, 1]) * c1 + float(m[0, 2]) for m in matrices]
+    my = [float(m[1, 0]) * c0 + float(m[1, 1]) * c1 + float(m[1, 2]) for m in matrices]
     iterations = max(1, iterations)
     shrink = max(1, iterations // 2)
     # inlier radius: geometric from start to end over the first half, then constant
@@ -228,41 +231,39 @@ def refine_rigid_many(
     far = float(start_radius) + 1e3
     active = list(range(k_all))  # the transforms still moving
     # per transform, each point and its four neighbours (central differences), all sampled
-    # in one lookup
-    grid = np.empty((k_all, 5, n, 2), dtype=np.float32)
+    # in one lookup: their columns and rows as two planes (no interleaving of the points)
+    plane_x = np.empty((k_all, 5, n), dtype=np.float32)
+    plane_y = np.empty((k_all, 5, n), dtype=np.float32)
+    normal = np.empty((k_all, 4, n))  # per transform, the rows of its normal equations
     for k, radius in enumerate(radii):
         if not active:
             break
         a = len(active)
-        idx = np.array(active)
-        c = np.cos(theta[idx])[:, None]
-        s = np.sin(theta[idx])[:, None]
+        angles = np.array([theta[h] for h in active])
+        c = np.cos(angles)[:, None]
+        s = np.sin(angles)[:, None]
         rx = c * cx - s * cy  # (a, n) rotated, centred points
         ry = s * cx + c * cy
-        g = grid[:a]
-        g[:, :, :, 0] = (rx + mx[idx, None])[:, None, :]
-        g[:, :, :, 1] = (ry + my[idx, None])[:, None, :]
-        g[:, 1, :, 0] += 1.0
-        g[:, 2, :, 0] -= 1.0
-        g[:, 3, :, 1] += 1.0
-        g[:, 4, :, 1] -= 1.0
-        vals = sample_at(field, g.reshape(a * 5, n, 2), far).reshape(a, 5, n)
+        _neighbours(rx + np.array([mx[h] for h in active])[:, None], plane_x[:a], (1, 2))
+        _neighbours(ry + np.array([my[h] for h in active])[:, None], plane_y[:a], (3, 4))
+        vals = sample_xy(field, plane_x[:a], plane_y[:a], far)  # (a, 5, n)
         keep = vals[:, 0] < radius  # (a, n)
         counts = np.count_nonzero(keep, axis=1)
-        v = vals.astype(np.float64)
         w = keep.astype(np.float64)
-        r = v[:, 0] * w
-        gx = 0.5 * (v[:, 1] - v[:, 2]) * w
-        gy = 0.5 * (v[:, 3] - v[:, 4]) * w
-        gt = gy * rx - gx * ry  # d q / d theta is the rotated, centred point turned by 90 deg
+        rows = normal[:a]  # (a, 4, n): d/d theta, d/dx, d/dy and the residual
+        # in float64 from the float32 samples (each converted exactly, as by astype)
+        np.multiply(vals[:, 0], w, out=rows[:, 3])
+        gx = np.multiply(0.5 * _difference(vals[:, 1], vals[:, 2]), w, out=rows[:, 1])
+        gy = np.multiply(0.5 * _difference(vals[:, 3], vals[:, 4]), w, out=rows[:, 2])
+        # d q / d theta is the rotated, centred point turned by 90 deg
+        np.subtract(gy * rx, gx * ry, out=rows[:, 0])
         # per transform, the 3x3 normal matrix and the right-hand side, as one batched product
-        rows = np.stack([gt, gx, gy, r], axis=1)  # (a, 4, n)
-        sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1))  # (a, 3, 4)
+        sums = np.matmul(rows[:, :3], rows.transpose(0, 2, 1)).tolist()  # (a, 3, 4)
         still = []
-        for j, h in enumerate(active):
-            if counts[j] < 3:
+        for h, inliers, system in zip(active, counts.tolist(), sums, strict=True):
+            if inliers < 3:
                 continue
-            (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = sums[j].tolist()
+            (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = system
             if b0 == 0.0 and b1 == 0.0 and b2 == 0.0:
                 continue
             # Levenberg-style damping of the diagonal, then Cramer's rule for the 3x3 system
@@ -292,6 +293,29 @@ def refine_rigid_many(
         m[:2, 2] = t
         out.append(m)
     return out
+
+
+def _difference(a: NDArray[np.float32], b: NDArray[np.float32]) -> NDArray[np.float64]:
+    """``a - b`` in float64 (both converted exactly first, without a float64 copy)."""
+    return np.subtract(a, b, dtype=np.float64)
+
+
+def _neighbours(
+    centre: NDArray[np.float64], out: NDArray[np.float32], along: tuple[int, int]
+) -> None:
+    """One coordinate of the points of :func:`refine_rigid_many` and of their four
+    neighbours: ``out[:, q]`` (shape (a, n)) is ``centre`` in float32, one cell more for
+    ``q = along[0]`` and one less for ``q = along[1]`` (each added in float32 to the
+    rounded centre), for the neighbours of the other axis ``centre`` itself."""
+    base = out[:, 0]
+    base[...] = centre
+    for q in range(1, 5):
+        if q == along[0]:
+            np.add(base, np.float32(1.0), out=out[:, q])
+        elif q == along[1]:
+            np.subtract(base, np.float32(1.0), out=out[:, q])
+        else:
+            out[:, q] = base
 
 
 def _solve3(

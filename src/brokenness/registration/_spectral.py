@@ -33,6 +33,7 @@ __all__ = [
     "log_polar_signature",
     "packed_size",
     "packed_spectrum",
+    "padded_spectrum",
     "parabolic_offset",
     "polar_grid",
     "whiten",
@@ -169,10 +170,14 @@ def log_polar_signature(
     rows, cols = image.shape
     np.multiply(image, window, out=canvas[:rows, :cols])
     spec = scipy.fft.rfft2(canvas, workers=workers)
-    mag = np.log1p(np.abs(spec)).astype(np.float32)
+    mag = np.abs(spec).astype(np.float32, copy=False)
+    np.log1p(mag, out=mag)
     mag = np.fft.fftshift(mag, axes=0)
-    polar = cv2.remap(mag, grid[0], grid[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    polar = polar - polar.mean(axis=1, keepdims=True)
+    polar: F32 = np.asarray(
+        cv2.remap(mag, grid[0], grid[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
+        dtype=np.float32,
+    )
+    polar -= polar.mean(axis=1, keepdims=True)
     polar /= polar.std(axis=1, keepdims=True) + np.float32(1e-6)
     return scipy.fft.rfft(polar, axis=1, workers=workers).astype(np.complex64)
 
@@ -216,6 +221,12 @@ def packed_spectrum(image: F32, shape: tuple[int, int]) -> F32:
     rows, cols = image.shape
     canvas = np.zeros(shape, dtype=np.float32)
     canvas[:rows, :cols] = image
+    return padded_spectrum(canvas)
+
+
+def padded_spectrum(canvas: F32) -> F32:
+    """:func:`packed_spectrum` of an image already zero-padded: ``canvas`` is the padded
+    image itself (even sides), for a caller that draws its images into one padded canvas."""
     return whiten_packed(np.asarray(cv2.dft(canvas), dtype=np.float32))
 
 

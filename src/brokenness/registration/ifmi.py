@@ -69,7 +69,7 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
-from .._points import take_rows
+from .._points import squared_norms, take_rows
 from ..errors import MapError, ParameterError
 from ..grid import OCCUPIED
 from ..transform import RigidTransform
@@ -652,6 +652,7 @@ class IFMIRegistrar:
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
         # the moving points under each kept hypothesis
         placed = np.empty((max_candidates, mov.points.shape[0], 2), dtype=np.float64)
+        centres = np.empty((max_candidates, 2))  # ... and their centroids
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
@@ -665,9 +666,11 @@ class IFMIRegistrar:
                 # are very unlikely to win and keep their spectral estimate (saves time)
                 full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
             moved = mov.points @ full[:2, :2].T + full[:2, 2]
-            if self._same_as_any(moved, placed[: len(scored)]):
+            centre = moved.mean(axis=0)
+            kept = len(scored)
+            if self._same_as_any((moved, centre), (placed[:kept], centres[:kept])):
                 continue
-            placed[len(scored)] = moved
+            placed[kept], centres[kept] = moved, centre
             scored.append((score, z, k, full))
             if len(scored) == max_candidates:
                 break
@@ -740,18 +743,32 @@ class IFMIRegistrar:
         return out
 
     @staticmethod
-    def _same_as_any(a: NDArray[np.float64], others: NDArray[np.float64]) -> bool:
+    def _same_as_any(
+        a: tuple[NDArray[np.float64], NDArray[np.float64]],
+        others: tuple[NDArray[np.float64], NDArray[np.float64]],
+    ) -> bool:
         """Whether the placement ``a`` (N, 2) of the moving points lies within a cell of one
         of ``others`` (K, N, 2) on average (mean distance of the points under 1).
 
-        All K comparisons in one pass: the squared distances as one ``(K * N, 2)``
-        product and each placement's mean a reduction of its own row, the same sums in the
-        same order as comparing the pairs one at a time.
+        Each placement comes with its centroid (shape (2,), of ``others`` (K, 2)). The mean
+        distance of two placements is at least the distance of their centroids (the norm
+        of the mean difference is at most the mean of the norms), so a placement whose
+        centroid is more than ``1 + 1e-6`` from ``a``'s is not within a cell: the rounding
+        of either mean is some 1e-12 of it, far below the margin. The others are compared
+        in one pass: the squared distances as sums of two squares
+        (:func:`~brokenness._points.squared_norms`) and each placement's mean a reduction
+        of its own row, the same sums in the same order as comparing the pairs one at a
+        time.
         """
-        if others.shape[0] == 0:
+        points, centre = a
+        placements, centres = others
+        if placements.shape[0] == 0:
             return False
-        d = (a - others).reshape(-1, 2)
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(others.shape[:2])
+        near = np.flatnonzero(squared_norms(centres - centre) <= (1.0 + 1e-6) ** 2)
+        if near.size == 0:
+            return False
+        close = placements.take(near, axis=0)
+        dist = np.sqrt(squared_norms(points - close))  # (K, N)
         return bool((np.mean(dist, axis=1) < 1.0).any())
 
     @staticmethod
@@ -794,6 +811,10 @@ class IFMIRegistrar:
         centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
         centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
         found: dict[float, list[tuple[NDArray[np.float64], float]]] = {}
+        # one zero-padded canvas for every angle: each rotated image is drawn into its
+        # corner (every cell of which the warp writes), the padding stays zero
+        padded_canvas = np.zeros(padded, dtype=np.float32)
+        canvas = padded_canvas[:side, :side]
         for theta in thetas:
             out: list[tuple[NDArray[np.float64], float]] = found.setdefault(theta, [])
             rot = _rot(theta)
@@ -801,15 +822,18 @@ class IFMIRegistrar:
             # the shift is rounded so that theta = 0 is an exact (interpolation-free) copy
             t = np.round(centre_c - rot[:2, :2] @ centre_m)
             to_canvas = _shift(t[0], t[1]) @ rot
-            canvas: NDArray[np.float32] = cv2.warpAffine(  # type: ignore[assignment]
+            drawn = cv2.warpAffine(
                 g,
                 to_canvas[:2].astype(np.float64),
                 (side, side),
+                dst=canvas,
                 flags=cv2.INTER_LINEAR,
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=0.0,
             )
-            spec = _spectral.packed_spectrum(canvas, padded)
+            if drawn is not canvas:  # a new image (OpenCV makes none for this type and size)
+                canvas[...] = drawn
+            spec = _spectral.padded_spectrum(padded_canvas)
             for twin in (False, True):
                 # the flipped canvas has the conjugate spectrum: correlate without conjugating
                 cross = cv2.mulSpectrums(spec_ref, spec, 0, conjB=not twin)
@@ -875,13 +899,10 @@ class IFMIRegistrar:
         rows, cols = surface.shape
         i = int(np.argmax(surface))
         r, c = divmod(i, cols)
-        v = float(surface[r, c])
-        oy = _spectral.parabolic_offset(
-            float(surface[(r - 1) % rows, c]), v, float(surface[(r + 1) % rows, c])
-        )
-        ox = _spectral.parabolic_offset(
-            float(surface[r, (c - 1) % cols]), v, float(surface[r, (c + 1) % cols])
-        )
+        at = surface.item  # the cells as Python floats (exact), one lookup each
+        v = at(r, c)
+        oy = _spectral.parabolic_offset(at((r - 1) % rows, c), v, at((r + 1) % rows, c))
+        ox = _spectral.parabolic_offset(at(r, (c - 1) % cols), v, at(r, (c + 1) % cols))
         mean, std = level
         z = (v - mean) / std if std > 0 else 0.0
         noise = 2.5 * math.sqrt(2.0 * math.log(surface.size))
