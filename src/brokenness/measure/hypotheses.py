@@ -120,6 +120,10 @@ def _refinements(
     return [(option, float(v)) for option, v in zip(options, scores, strict=True)]
 
 
+#: Candidates compared with the best one per pass in :func:`rivals`.
+_RIVAL_CHUNK = 8
+
+
 def rivals(
     candidates: Sequence[Candidate], sample: NDArray[np.float64], best: RigidTransform, apart: float
 ) -> list[tuple[Candidate, NDArray[np.float64]]]:
@@ -130,11 +134,15 @@ def rivals(
         return []
     at_best = best.apply(sample)
     moved = [c.transform.apply(sample) for c in candidates]
-    # every candidate's mean distance in one pass: each point's norm over its last axis and
-    # each candidate's mean a reduction of its own row (the same sums, in the same order, as
-    # one candidate at a time)
-    mean = point_norms(np.stack(moved) - at_best).mean(axis=1)
-    return [(c, m) for c, m, d in zip(candidates, moved, mean.tolist(), strict=True) if d > apart]
+    # the candidates' mean distances, _RIVAL_CHUNK candidates a pass (bounded temporaries
+    # however many hypotheses a step pools): each point's norm over its last axis and each
+    # candidate's mean a reduction of its own row (the same sums, in the same order, as one
+    # candidate at a time)
+    mean: list[float] = []
+    for start in range(0, len(moved), _RIVAL_CHUNK):
+        chunk = np.stack(moved[start : start + _RIVAL_CHUNK])
+        mean += point_norms(chunk - at_best).mean(axis=1).tolist()
+    return [(c, m) for c, m, d in zip(candidates, moved, mean, strict=True) if d > apart]
 
 
 def rival_chance(

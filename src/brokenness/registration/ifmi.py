@@ -86,6 +86,9 @@ _MEMOS = 2
 #: Cells of margin the reference's distance map keeps around its walls' bounding box; more
 #: than any inlier radius of the refinement (which starts at ``2 * factor + 2`` cells).
 _DISTANCE_MARGIN = 64
+#: Two placements whose centroids are farther apart than this (squared: a cell and the
+#: margin of :meth:`IFMIRegistrar._same_as_any`) are not within a cell of each other.
+_SAME_CENTRE_SQ = (1.0 + 1e-6) ** 2
 
 
 @dataclass
@@ -151,6 +154,12 @@ def _shift(tx: float, ty: float) -> NDArray[np.float64]:
 
 def _scale(s: float) -> NDArray[np.float64]:
     return np.array([[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _placement(points: NDArray[np.float64], matrix: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``points`` (N, 2) moved by the 3x3 ``matrix`` (the same expression every time, so a
+    placement made again has the same bits)."""
+    return points @ matrix[:2, :2].T + matrix[:2, 2]
 
 
 def _local(ref: _Prepared, matrix: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -650,9 +659,10 @@ class IFMIRegistrar:
         # hypotheses in order of promise: cells near a reference wall, then peak quality
         order = sorted(range(len(prescreen)), key=lambda k: (-prescreen[k][0], -prescreen[k][1], k))
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
-        # the moving points under each kept hypothesis
-        placed = np.empty((max_candidates, mov.points.shape[0], 2), dtype=np.float64)
-        centres = np.empty((max_candidates, 2))  # ... and their centroids
+        # the centroids of the moving points under each kept hypothesis (the placements
+        # themselves are made again where two centroids are close: one (N, 2) array at a
+        # time, not one for each of the max_candidates)
+        centres = np.empty((max_candidates, 2))
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]
@@ -665,12 +675,15 @@ class IFMIRegistrar:
                 # best one; the refinement only gains cells already near a wall, so the rest
                 # are very unlikely to win and keep their spectral estimate (saves time)
                 full, score = self._refined(ref, memo, full, start, 2 * n0 >= best_n0)
-            moved = mov.points @ full[:2, :2].T + full[:2, 2]
+            moved = _placement(mov.points, full)
             centre = moved.mean(axis=0)
             kept = len(scored)
-            if self._same_as_any((moved, centre), (placed[:kept], centres[:kept])):
+            near = np.flatnonzero(squared_norms(centres[:kept] - centre) <= _SAME_CENTRE_SQ)
+            close = [_placement(mov.points, scored[int(i)][3]) for i in near]
+            others = np.stack(close) if close else np.empty((0, *moved.shape))
+            if self._same_as_any((moved, centre), (others, centres[near])):
                 continue
-            placed[kept], centres[kept] = moved, centre
+            centres[kept] = centre
             scored.append((score, z, k, full))
             if len(scored) == max_candidates:
                 break
@@ -764,7 +777,7 @@ class IFMIRegistrar:
         placements, centres = others
         if placements.shape[0] == 0:
             return False
-        near = np.flatnonzero(squared_norms(centres - centre) <= (1.0 + 1e-6) ** 2)
+        near = np.flatnonzero(squared_norms(centres - centre) <= _SAME_CENTRE_SQ)
         if near.size == 0:
             return False
         close = placements.take(near, axis=0)
