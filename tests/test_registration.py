@@ -506,4 +506,14 @@ def test_same_placement_test_skips_far_centroids_without_changing_the_answer() -
         dist = np.sqrt(np.einsum("ij,ij->i", d, d)).reshape(k, n)
         full = bool((dist.mean(axis=1) < 1.0).any())
         centres = others.mean(axis=1)
-        assert IFMIRegistrar._same_as_any((a, a.mean(axis=0)), (others, centres)) == full
+        made: list[int] = []
+
+        def placement(i: int, others=others, made=made) -> np.ndarray:
+            made.append(i)
+            return others[i]
+
+        assert IFMIRegistrar._same_as_any((a, a.mean(axis=0)), centres, placement) == full
+        # only the placements whose centroids are within a cell (and the margin) are made
+        off = centres - a.mean(axis=0)
+        near = off[:, 0] * off[:, 0] + off[:, 1] * off[:, 1] <= (1.0 + 1e-6) ** 2
+        assert sorted(made) == [int(i) for i in np.flatnonzero(near)]

@@ -61,6 +61,7 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -86,8 +87,9 @@ _MEMOS = 2
 #: Cells of margin the reference's distance map keeps around its walls' bounding box; more
 #: than any inlier radius of the refinement (which starts at ``2 * factor + 2`` cells).
 _DISTANCE_MARGIN = 64
-#: Two placements whose centroids are farther apart than this (squared: a cell and the
-#: margin of :meth:`IFMIRegistrar._same_as_any`) are not within a cell of each other.
+#: Two placements whose centroids are farther apart than this (squared: a cell and a
+#: margin for rounding, :meth:`IFMIRegistrar._same_as_any`) are not within a cell of each
+#: other.
 _SAME_CENTRE_SQ = (1.0 + 1e-6) ** 2
 
 
@@ -678,10 +680,11 @@ class IFMIRegistrar:
             moved = _placement(mov.points, full)
             centre = moved.mean(axis=0)
             kept = len(scored)
-            near = np.flatnonzero(squared_norms(centres[:kept] - centre) <= _SAME_CENTRE_SQ)
-            close = [_placement(mov.points, scored[int(i)][3]) for i in near]
-            others = np.stack(close) if close else np.empty((0, *moved.shape))
-            if self._same_as_any((moved, centre), (others, centres[near])):
+            if self._same_as_any(
+                (moved, centre),
+                centres[:kept],
+                lambda i: _placement(mov.points, scored[i][3]),
+            ):
                 continue
             centres[kept] = centre
             scored.append((score, z, k, full))
@@ -758,29 +761,28 @@ class IFMIRegistrar:
     @staticmethod
     def _same_as_any(
         a: tuple[NDArray[np.float64], NDArray[np.float64]],
-        others: tuple[NDArray[np.float64], NDArray[np.float64]],
+        centres: NDArray[np.float64],
+        placement: Callable[[int], NDArray[np.float64]],
     ) -> bool:
         """Whether the placement ``a`` (N, 2) of the moving points lies within a cell of one
-        of ``others`` (K, N, 2) on average (mean distance of the points under 1).
+        of the earlier placements on average (mean distance of the points under 1).
 
-        Each placement comes with its centroid (shape (2,), of ``others`` (K, 2)). The mean
-        distance of two placements is at least the distance of their centroids (the norm
-        of the mean difference is at most the mean of the norms), so a placement whose
-        centroid is more than ``1 + 1e-6`` from ``a``'s is not within a cell: the rounding
-        of either mean is some 1e-12 of it, far below the margin. The others are compared
-        in one pass: the squared distances as sums of two squares
+        ``a`` comes with its centroid (shape (2,)); ``centres`` (K, 2) are the earlier
+        placements' centroids and ``placement(i)`` makes the ``i``-th of them (N, 2). The
+        mean distance of two placements is at least the distance of their centroids (the
+        norm of the mean difference is at most the mean of the norms), so a placement whose
+        centroid is more than ``1 + 1e-6`` from ``a``'s is not within a cell and is never
+        made: the rounding of either mean is some 1e-12 of it, far below the margin. The
+        others are compared in one pass: the squared distances as sums of two squares
         (:func:`~brokenness._points.squared_norms`) and each placement's mean a reduction
         of its own row, the same sums in the same order as comparing the pairs one at a
         time.
         """
         points, centre = a
-        placements, centres = others
-        if placements.shape[0] == 0:
-            return False
         near = np.flatnonzero(squared_norms(centres - centre) <= _SAME_CENTRE_SQ)
         if near.size == 0:
             return False
-        close = placements.take(near, axis=0)
+        close = np.stack([placement(int(i)) for i in near])
         dist = np.sqrt(squared_norms(points - close))  # (K, N)
         return bool((np.mean(dist, axis=1) < 1.0).any())
 
