@@ -22,6 +22,8 @@ from brokenness import (
     resample_to_resolution,
 )
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+from brokenness.io.resample import cell_scale_offset
+from brokenness.limits import MAX_CELLS_ENV
 from brokenness.masking import cell_points
 
 DATA = Path(__file__).parent / "data"
@@ -189,6 +191,42 @@ def test_coarser_map_is_brought_to_the_reference_resolution(maps):
     # coarse cell centres land on the reference cells they cover
     assert t.world is not None and np.hypot(*t.world.translation) < 0.06
     assert result.labels.shape == coarse.shape
+
+
+@pytest.mark.parametrize("shift", [(8.0, 0.0), (0.0, 6.0)])
+def test_finer_map_is_measured_at_its_own_resolution(maps, shift):
+    # a part shifted by 0.3-0.4 m: 6-8 cells of the map, 3-4 of a reference at 0.1 m, where
+    # the downsampled map's two parts were within the merge threshold of each other (degree 0)
+    ref = maps["building_31.yaml"]
+    coarse = resample_to_resolution(ref, 0.1)
+    motions = [RigidTransform(), RigidTransform(0.0, *shift)]
+    broken, truths = break_map(ref, strips(ref.shape, [0.5]), motions, pad=40)
+    result = compute_brokenness(broken, coarse)
+    assert result.degree == 1
+    assert result.parameters["working_resolution"] == pytest.approx(0.05)
+    assert result.labels.shape == broken.shape
+    s, tx, ty = cell_scale_offset(ref, coarse)
+    to_coarse = RigidTransform(0.0, tx, ty, s)
+    for _, error in _match(result, [to_coarse.compose(t) for t in truths]):
+        assert error < 1.0  # reference cells (0.1 m)
+    assert {i for i, _ in _match(result, [to_coarse.compose(t) for t in truths])} == {0, 1}
+    # displacements are reported in reference cells: the shift, halved
+    assert result.partitions[1].displacement == pytest.approx(np.hypot(*shift) / 2, abs=0.5)
+    assert result.partitions[1].displacement_m == pytest.approx(
+        result.partitions[1].displacement * 0.1
+    )
+
+
+def test_reference_too_large_upsampled_downsamples_the_map(maps, monkeypatch):
+    ref = maps["building_31.yaml"]
+    coarse = resample_to_resolution(ref, 0.1)
+    # the reference at 5 cm (648 x 694 cells) exceeds the limit; the map at 10 cm fits it
+    monkeypatch.setenv(MAX_CELLS_ENV, str(400_000))
+    result = compute_brokenness(ref, coarse)
+    assert result.parameters["working_resolution"] == pytest.approx(0.1)
+    assert result.degree == 0
+    assert result.partitions[0].transform.scale == pytest.approx(0.5)
+    assert result.labels.shape == ref.shape
 
 
 def test_world_transform_in_metres(maps):

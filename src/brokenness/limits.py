@@ -8,7 +8,8 @@ memory:
   5 cm), overridable with the environment variable :data:`MAX_CELLS_ENV`
   (``BROKENNESS_MAX_CELLS``, a positive integer; read at each check, so it also reaches batch
   workers). It bounds decoded images and arrays (from their headers), ROS bag grids, a map
-  resampled to its reference's resolution, and the neighbourhood that ``threshold`` implies;
+  or reference resampled to the other's resolution, and the neighbourhood that ``threshold``
+  implies;
 * **file sizes**: :func:`max_file_bytes` for images, arrays and result files (8 bytes per
   allowed cell), :data:`MAX_TEXT_BYTES` for map YAML and error files, and
   :data:`MAX_MANIFEST_BYTES` for manifests;

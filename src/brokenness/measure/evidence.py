@@ -144,9 +144,9 @@ def contradiction(
     points : ndarray, shape (N, 2)
         The map's occupied cells ``(x, y)`` in ``working``'s grid, row-major.
     working : OccupancyMap
-        The map at the reference's resolution.
+        The map at the working resolution (that of ``index``'s reference).
     index : ReferenceIndex
-        The reference.
+        The reference, at the working resolution.
     threshold : float
         Agreement threshold ``c`` (cells); free cells within ``2 c`` of a map wall are not
         counted.
@@ -302,7 +302,7 @@ def wall_contradiction(
     points : ndarray, shape (N, 2)
         The map's occupied cells ``(x, y)`` in the working grid.
     index : ReferenceIndex
-        The reference.
+        The reference, at the working resolution.
     threshold : float
         Agreement threshold ``c`` (cells); clear free space is farther than ``2 c`` from
         reference walls.

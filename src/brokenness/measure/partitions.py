@@ -190,12 +190,19 @@ def assemble(
     found: list[Found],
     points: NDArray[np.float64],
     working: OccupancyMap,
-    to_working: RigidTransform,
+    frames: tuple[RigidTransform, RigidTransform],
     original: OccupancyMap,
     ref: OccupancyMap,
     index: ReferenceIndex,
 ) -> tuple[list[Partition], NDArray[np.int16]]:
-    """Sort partitions by size, relate them to the largest, and draw the label image."""
+    """Sort partitions by size, relate them to the largest, and draw the label image.
+
+    ``frames`` are the transforms original map cells -> working map cells and working
+    reference cells -> reference cells: the partitions' transforms are reported from the
+    original map's cells to the reference's, and their displacements in reference cells.
+    """
+    to_working, to_reference = frames
+    cell = to_reference.scale  # a working reference cell, in reference cells
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     labels = np.full(working.shape, NOT_OCCUPIED, dtype=np.int16)
     labels[points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)] = UNASSIGNED
@@ -208,8 +215,10 @@ def assemble(
         pts = take_rows(points, f.members)
         labels[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)] = new_index
         offset = math.degrees(math.remainder(f.transform.rotation - largest.rotation, 2 * math.pi))
-        displacement = float(f.transform.displacement(largest, pts).mean()) if new_index else 0.0
-        whole = f.transform.compose(to_working).with_world(original, ref)
+        displacement = (
+            cell * float(f.transform.displacement(largest, pts).mean()) if new_index else 0.0
+        )
+        whole = to_reference.compose(f.transform.compose(to_working)).with_world(original, ref)
         partitions.append(
             Partition(
                 index=new_index,

@@ -454,7 +454,7 @@ def recover(
     points : ndarray, shape (N, 2)
         The map's occupied cells, ``(x, y)``.
     working : OccupancyMap
-        The map at the reference's resolution.
+        The map at the working resolution (that of ``index``'s reference).
     index : ReferenceIndex
         The reference.
     registrar : Registrar

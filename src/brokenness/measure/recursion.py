@@ -206,7 +206,12 @@ def compute_brokenness(
         :func:`brokenness.load_map`.
     reference : OccupancyMap, array_like or path
         The reference (ground truth). If both maps know their resolution and the two differ,
-        the map is resampled to the reference's resolution first.
+        the coarser of the two is resampled to the finer one's first (the map keeps the
+        detail that tells its partitions apart; ``threshold`` and every other length in
+        cells are cells of that grid, ``parameters["working_resolution"]`` of the result),
+        unless the reference upsampled would exceed the cell limit: then the map is
+        downsampled to the reference's resolution. Transforms and displacements are always
+        reported from the map's cells to the reference's.
     options : BrokennessOptions, optional
         Every option of the measure in one object (defaults: ``BrokennessOptions()``; its
         docstring describes each).
@@ -268,10 +273,11 @@ def _compute(
     n_occupied = original_points.shape[0]
     if n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
-    check_threshold(opts.loose, ref.shape)  # the neighbourhood it implies fits the limits
-    index = ReferenceIndex.build(ref)  # raises for an empty reference
-
-    working, to_working = _common_resolution(original, ref)
+    if not ref.occupied.any():
+        raise MapError("the reference map has no occupied cell")
+    working, to_working, working_ref, to_reference = _common_resolution(original, ref)
+    check_threshold(opts.loose, working_ref.shape)  # the neighbourhood it implies fits the limits
+    index = ReferenceIndex.build(working_ref)
     method = opts.method
     kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     kwargs.update(opts.registration_kwargs)
@@ -311,7 +317,7 @@ def _compute(
     del whole, around  # the prepared reference (its distance map): no registration from here on
     reason, map_ratio, map_bound, ratios = _judge(found, points, working, index, settings)
     found_partitions, labels_working = assemble(
-        found, points, working, to_working, original, ref, index
+        found, points, working, (to_working, to_reference), original, ref, index
     )
     labels = labels_in_original_grid(labels_working, working, to_working, original)
     # the cells of each partition, counted at the original map's occupied cells
@@ -507,19 +513,44 @@ def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> Br
     return replace(base, **overrides) if overrides else base
 
 
-def _common_resolution(m: OccupancyMap, ref: OccupancyMap) -> tuple[OccupancyMap, RigidTransform]:
-    """The map at the reference's resolution, and the transform original -> working cells."""
+def _common_resolution(
+    m: OccupancyMap, ref: OccupancyMap
+) -> tuple[OccupancyMap, RigidTransform, OccupancyMap, RigidTransform]:
+    """Map and reference at the finer of their two resolutions: ``(working map, original
+    map cells -> working map cells, working reference, working reference cells -> reference
+    cells)``.
+
+    The coarser of the two is resampled (:func:`~brokenness.io.resample.resample_to_resolution`):
+    a coarser map is upsampled to the reference's cells, a coarser reference to the map's.
+    Downsampling the map instead would throw away what tells its partitions apart: parts
+    clearly off from each other (half a metre) are a few cells off at the coarser
+    resolution, within the merge threshold of each other. On the realistic benchmark's
+    simulated maps made at 5 cm against references at 10 cm, all partitions were true in
+    33 of 42 cases with the map downsampled, and the exact degree more often with the
+    reference upsampled (see the README, "Resolutions"). A reference that would exceed the
+    cell limit upsampled (:func:`~brokenness.limits.max_cells`) is kept as it is, and the
+    map downsampled to it.
+    """
+    identity = RigidTransform.identity()
     if (
         m.resolution is None
         or ref.resolution is None
         or math.isclose(m.resolution, ref.resolution, rel_tol=1e-9)
     ):
-        return m, RigidTransform.identity()
-    from ..io.resample import cell_scale_offset, resample_to_resolution
+        return m, identity, ref, identity
+    from ..io.resample import cell_scale_offset, resample_to_resolution, resampled_size
+    from ..limits import max_cells
 
+    if m.resolution < ref.resolution:  # the map is the finer: upsample the reference, if it fits
+        scale = ref.resolution / m.resolution
+        rows, cols = (resampled_size(n, scale) for n in ref.shape)
+        if rows * cols <= max_cells():
+            fine_ref = resample_to_resolution(ref, m.resolution)
+            s, tx, ty = cell_scale_offset(ref, fine_ref)
+            return m, identity, fine_ref, RigidTransform(0.0, tx, ty, s).inverse()
     working = resample_to_resolution(m, ref.resolution)
     s, tx, ty = cell_scale_offset(m, working)
-    return working, RigidTransform(0.0, tx, ty, s)
+    return working, RigidTransform(0.0, tx, ty, s), ref, identity
 
 
 def _recurse(
