@@ -17,6 +17,10 @@ same thing:
 - :func:`broken_simulated_maps`: a simulated building broken into 4 partitions whose free
   space overlaps in the map's frame (case ``sim_d3_s17`` of the benchmark's fresh set): its
   parts are all found, and the contradiction test refuses the degree ("not the same place?").
+- :func:`twin_placed_simulated_maps`: two simulated buildings (cases ``sim_d4_s28`` and
+  ``sim_d7_s10`` of the held-out sets) in which a small part (6-7 % of the cells) was held at
+  a turned twin of its place until the settled partitions were registered alone again, with
+  their neighbourhoods (session 18).
 
 Each fixture takes well under 5 s to build (the Orebro log is read once per process).
 """
@@ -147,3 +151,15 @@ def broken_simulated_maps() -> list[BrokenCase]:
     """A simulated building at 5 cm, degree 3, in its own frame (see the module docstring)."""
     case = Case("sim", 3, 17, 0.05, 0.05, "run")
     return [_drawn("simulated degree 3 (seed 17, 5 cm, own frame)", case)]
+
+
+def twin_placed_simulated_maps() -> list[BrokenCase]:
+    """Simulated buildings of degrees 4 and 7 in their own frame, against their plans (see the
+    module docstring)."""
+    return [
+        _drawn("simulated degree 4 (seed 28, 5 cm, plan)", Case("sim", 4, 28, 0.05, 0.05, "plan")),
+        _drawn(
+            "simulated degree 7 (seed 10, 5 cm, plan at 0.1 m)",
+            Case("sim", 7, 10, 0.05, 0.1, "plan"),
+        ),
+    ]

@@ -42,10 +42,19 @@ from .._points import cells_at, take_rows
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import beyond
+from ..transform import RigidTransform
 from .partitions import Found, owners
 from .views import isolated_points
 
-__all__ = ["MAP_RATIO", "Contradiction", "WallContradiction", "contradiction", "wall_contradiction"]
+__all__ = [
+    "MAP_RATIO",
+    "Contradiction",
+    "FreeSpace",
+    "WallContradiction",
+    "contradiction",
+    "free_space",
+    "wall_contradiction",
+]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
 #: the chance rate, at the significance of the stopping rule (:meth:`Contradiction.upper_ratio`;
@@ -128,12 +137,72 @@ class Contradiction:
         return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
 
 
+@dataclass(frozen=True)
+class FreeSpace:
+    """The map's clear free cells (an even grid of them) and the partition that owns each.
+
+    A clear free cell is free and farther than ``2 c`` from the map's walls; it belongs to the
+    partition of its nearest wall (see the module docstring). Made once by
+    :func:`free_space` for a set of partitions (their members), it is counted under their
+    transforms by :func:`contradiction`, and under other transforms of one partition by
+    :meth:`counts` (the settle step's judgement of a rival transform).
+
+    Attributes
+    ----------
+    x, y : ndarray of int32, shape (M,)
+        The clear free cells looked up (columns and rows of the working grid).
+    owner : ndarray of int16, shape (M,)
+        The partition (index in the list given) that owns each.
+    partitions : int
+        How many partitions were given.
+    stride : int
+        The clear free cells of every ``stride``-th row and column were taken.
+    """
+
+    x: NDArray[np.int32]
+    y: NDArray[np.int32]
+    owner: NDArray[np.int16]
+    partitions: int
+    stride: int
+
+    def points(self, which: NDArray[np.bool_] | slice) -> NDArray[np.float64]:
+        """The cells ``which`` selects, as points ``(x, y)`` (float64)."""
+        return np.column_stack([self.x[which], self.y[which]]).astype(np.float64)
+
+    def counts(self, j: int, transform: RigidTransform, index: ReferenceIndex) -> tuple[int, int]:
+        """``(counted, contradicting)`` of partition ``j``'s free cells moved by
+        ``transform``: those that land on known reference cells, and those of them that land
+        on occupied ones."""
+        return _landing(self.points(self.owner == j), transform, index)
+
+
+def _landing(
+    owned: NDArray[np.float64], transform: RigidTransform, index: ReferenceIndex
+) -> tuple[int, int]:
+    """:meth:`FreeSpace.counts` of the cells ``owned``."""
+    if owned.shape[0] == 0:
+        return 0, 0
+    h, w = index.reference.shape
+    moved = np.rint(transform.apply(owned)).astype(np.intp)
+    x, y = moved[:, 0], moved[:, 1]
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    x, y = x[inside], y[inside]
+    # the reference's known cells are looked up in its states (a mask of them would add a
+    # byte a cell to the peak)
+    on_known = cells_at(index.reference.states, y, x) != UNKNOWN
+    return (
+        int(np.count_nonzero(on_known)),
+        int(np.count_nonzero(on_known & cells_at(index.occupied, y, x))),
+    )
+
+
 def contradiction(
     found: list[Found],
     points: NDArray[np.float64],
     working: OccupancyMap,
     index: ReferenceIndex,
     threshold: float,
+    owned: FreeSpace | None = None,
 ) -> Contradiction:
     """How often the map's clear free space lands on reference walls, per partition.
 
@@ -150,19 +219,44 @@ def contradiction(
     threshold : float
         Agreement threshold ``c`` (cells); free cells within ``2 c`` of a map wall are not
         counted.
+    owned : FreeSpace, optional
+        :func:`free_space` of ``found`` (their members; made here if not given).
 
     Returns
     -------
     Contradiction
     """
-    # the reference's known cells are looked up in its states (a mask of them would add a
-    # byte a cell to the peak while the owners' distance transform below runs)
-    ref_states = index.reference.states
-    occupied_ref = index.occupied
     n_known = index.known_count
-    chance = float(np.count_nonzero(occupied_ref)) / n_known if n_known else 0.0
+    chance = float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
     k = len(found)
-    empty = Contradiction(np.zeros(k, np.int64), np.zeros(k, np.int64), chance, 1)
+    if owned is None:
+        owned = free_space(found, points, working, threshold)
+    counted = np.zeros(k, np.int64)
+    contradicting = np.zeros(k, np.int64)
+    for start in range(0, owned.owner.size, _CHUNK):  # bounded temporaries
+        chunk = slice(start, start + _CHUNK)
+        owner = owned.owner[chunk]
+        x, y = owned.x[chunk], owned.y[chunk]
+        for j, f in enumerate(found):
+            sel = owner == j
+            if sel.any():
+                pts = np.column_stack([x[sel], y[sel]]).astype(np.float64)
+                n, hits = _landing(pts, f.transform, index)
+                counted[j] += n
+                contradicting[j] += hits
+    return Contradiction(counted, contradicting, chance, owned.stride)
+
+
+def free_space(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    threshold: float,
+) -> FreeSpace:
+    """The map's clear free cells and the partition of ``found`` that owns each (the one of
+    the nearest wall of a partition; arguments as for :func:`contradiction`)."""
+    k = len(found)
+    empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), k, 1)
     states = working.states
     # the box of the map's free cells: free space outside it does not exist
     free_box = _free_box(states)
@@ -220,27 +314,24 @@ def contradiction(
     )  # labels number the source blocks 1.. row-major, as boolean indexing lists them
     owners_of_blocks = block_owner[is_block]
     del block_owner, is_block
-    counted = np.zeros(k, np.int64)
-    contradicting = np.zeros(k, np.int64)
-    h, w = ref_states.shape
-    for start in range(0, clear.size, _CHUNK):  # bounded temporaries, whatever the map
+    # the cells and their owners, written chunk by chunk into arrays of small integers
+    # (bounded temporaries, whatever the map)
+    out = FreeSpace(
+        np.empty(clear.size, np.int32),
+        np.empty(clear.size, np.int32),
+        np.empty(clear.size, np.int16),
+        k,
+        stride,
+    )
+    for start in range(0, clear.size, _CHUNK):
         rows, cols = np.divmod(clear[start : start + _CHUNK], sub_width)
         rows *= stride
         cols *= stride
-        owners = owners_of_blocks.take(cells_at(nearest, rows // 2, cols // 2) - 1)
-        pts = np.column_stack([cols + c0, rows + r0]).astype(np.float64)
-        for j, f in enumerate(found):
-            sel = owners == j
-            if not sel.any():
-                continue
-            moved = np.rint(f.transform.apply(take_rows(pts, sel))).astype(np.intp)
-            x, y = moved[:, 0], moved[:, 1]
-            inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
-            x, y = x[inside], y[inside]
-            on_known = cells_at(ref_states, y, x) != UNKNOWN
-            counted[j] += int(np.count_nonzero(on_known))
-            contradicting[j] += int(np.count_nonzero(on_known & cells_at(occupied_ref, y, x)))
-    return Contradiction(counted, contradicting, chance, stride)
+        end = start + rows.size
+        out.owner[start:end] = owners_of_blocks.take(cells_at(nearest, rows // 2, cols // 2) - 1)
+        out.x[start:end] = cols + c0
+        out.y[start:end] = rows + r0
+    return out
 
 
 @dataclass(frozen=True)

@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -86,6 +87,7 @@ from .views import candidates_of, exhausted, moving_remainder, occupied_count
 
 __all__ = [
     "DENSE_SHARE",
+    "NEIGHBOURHOOD_RADIUS",
     "SUPPORT_RADIUS",
     "SUPPORT_SHARE",
     "agreement_support",
@@ -93,6 +95,7 @@ __all__ = [
     "neighbourhood_counts",
     "occupied_around",
     "recover",
+    "relocation_rivals",
     "taken_cells",
 ]
 
@@ -105,6 +108,10 @@ SUPPORT_RADIUS = 12
 SUPPORT_SHARE = 0.4
 #: Suspects with at least this share of suspects around them form the regions searched first.
 DENSE_SHARE = 0.3
+#: The neighbourhood of a settled partition registered alone for a rival
+#: (:func:`relocation_rivals`): the occupied cells within this many cells of its own, half
+#: the window of the support (0.3 m at 5 cm cells; see the README for how it was chosen).
+NEIGHBOURHOOD_RADIUS = SUPPORT_RADIUS // 2
 #: ... and all suspects are searched next, unless the regions hold this share of them already.
 _SAME_SET = 0.8
 #: Candidates (the best by plain agreement) whose coherent agreement is counted per search.
@@ -544,14 +551,81 @@ def recover(
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
-    if relocate and len(found) > 1:  # a lone partition's cells: what the first step registered
-        for f in found:
-            if exhausted(registrar):
-                break
-            elsewhere = search.elsewhere(found, f.members)
-            if elsewhere is not None:
-                rivals.append(elsewhere)
+    if relocate:
+        rivals += _relocations(search, found)
     return found, rivals
+
+
+def relocation_rivals(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    registrar: Registrar,
+    reference: Any,
+    settings: Settings,
+    around: NDArray[np.float64],
+    which: Sequence[int] | None = None,
+) -> list[RigidTransform]:
+    """Each partition's own cells, and its neighbourhood, registered alone: of each, the best
+    hypothesis that puts them elsewhere than every partition's transform does (the rivals of
+    ``recover``'s ``relocate``, for partitions already settled; arguments as for
+    :func:`recover`).
+
+    A part placed at a wrong place that fits its cells (the 180-degree twin of its stretch of
+    corridor, a room like its own) holds, after the settle step, mostly its own cells, and
+    registered alone they may give its true place among their hypotheses. Often they do not:
+    the cells a twin explains are those that fit it, and the part's cells that tell its true
+    place from the twin are the ones the wrong placement left to other partitions or to none.
+    Those lie beside the partition's cells (a part is a contiguous stretch of the run), so its
+    *neighbourhood* is registered too: the occupied cells within :data:`NEIGHBOURHOOD_RADIUS`
+    of its cells. :func:`~brokenness.measure.settle.settle` then judges every rival by the
+    usual count, and by the free space.
+    """
+    search = _Search(
+        points,
+        working,
+        index,
+        registrar,
+        reference,
+        around,
+        index.chance_agreement(settings.threshold),
+        settings,
+    )
+    return _relocations(search, found, NEIGHBOURHOOD_RADIUS, which)
+
+
+def _relocations(
+    search: _Search,
+    found: list[Found],
+    radius: int | None = None,
+    which: Sequence[int] | None = None,
+) -> list[RigidTransform]:
+    """:func:`relocation_rivals` with its search made, with the neighbourhood of ``radius``
+    cells of each partition too (``None``: its own cells alone). None for a lone partition:
+    its cells are what the first step registered."""
+    if len(found) < 2:
+        return []
+    pts = search.points
+    rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
+    everything = np.ones(pts.shape[0], dtype=bool)
+    sets: list[NDArray[np.intp]] = []
+    for j in range(len(found)) if which is None else which:
+        f = found[j]
+        sets.append(f.members)
+        if radius is not None:
+            mine = np.zeros(pts.shape[0], dtype=bool)
+            mine[f.members] = True
+            near = _window_counts(rows, cols, mine, everything, search.working.shape, radius)
+            sets.append(np.flatnonzero(near > 0))
+    out: list[RigidTransform] = []
+    for members in sets:
+        if exhausted(search.registrar):
+            break
+        elsewhere = search.elsewhere(found, members)
+        if elsewhere is not None:
+            out.append(elsewhere)
+    return out
 
 
 def _clears_free_space(

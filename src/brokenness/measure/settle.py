@@ -68,15 +68,18 @@ more; a partition is added only with the evidence a new partition of the recursi
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._points import point_norms, take_rows
+from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
+from .evidence import MIN_EXPECTED, FreeSpace, free_space
 from .options import Settings
 from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
@@ -116,6 +119,9 @@ def settle(
     index: ReferenceIndex,
     settings: Settings,
     rivals: Sequence[RigidTransform] = (),
+    refits: bool = True,
+    working: OccupancyMap | None = None,
+    owned: FreeSpace | None = None,
 ) -> list[Found]:
     """Refit each partition's transform on tiles of its cells; keep what explains more, and
     split a partition whose refits are two parts (see the module docstring).
@@ -134,6 +140,17 @@ def settle(
         Transforms found elsewhere (the recovery's hypotheses too weak for a new partition),
         offered to every partition as replacements; one is taken only if it makes more
         cells agree than chance could (see step 3).
+    refits : bool, optional
+        Refit the transforms on tiles and shifts (steps 2 and 4); ``False`` offers only the
+        ``rivals``, to partitions already settled (whose refits added nothing).
+    working : OccupancyMap, optional
+        The map (at the working resolution, as ``points``): a rival that explains more
+        cells, though not more than chance could, is taken when the partition's free space
+        then crosses the reference's walls significantly less often (step 3). Without it,
+        only the count of agreeing cells judges a rival.
+    owned : FreeSpace, optional
+        :func:`~brokenness.measure.evidence.free_space` of ``found``, if already made (made
+        here when a rival needs it).
 
     Returns
     -------
@@ -148,9 +165,12 @@ def settle(
     # specks of noise are no part's walls: they neither pull a refit nor count as explained
     walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
     agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
-    seeds, candidates = _candidates(transforms, agree, walls, index, settings)
-    more_seeds, more = _shifted_copies(transforms, agree, walls, index, settings)
-    seeds, candidates = seeds + more_seeds, candidates + more
+    seeds: list[int] = []
+    candidates: list[RigidTransform] = []
+    if refits:
+        seeds, candidates = _candidates(transforms, agree, walls, index, settings)
+        more_seeds, more = _shifted_copies(transforms, agree, walls, index, settings)
+        seeds, candidates = seeds + more_seeds, candidates + more
     local = len(candidates)  # the refits; the rivals, offered to every partition, after them
     for t in rivals:
         seeds += list(range(len(transforms)))
@@ -164,6 +184,9 @@ def settle(
     offered = np.stack(rows)
     seeds_arr = np.asarray(seeds)
     p0 = index.chance_agreement(threshold)
+    free = (
+        None if working is None else _FreeSpaceTest(found, points, working, index, settings, owned)
+    )
     added: list[Found] = []
     alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
@@ -185,7 +208,14 @@ def settle(
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
                 gain, redundant = _rival_gain(
-                    j, offered[c], agree, (rest, others, explained), alone, p0, settings
+                    j,
+                    offered[c],
+                    agree,
+                    (rest, others, explained),
+                    alone,
+                    p0,
+                    settings,
+                    None if free is None else free.clears(j, transforms[j], candidates[c]),
                 )
                 if gain > best_gain:
                     best_gain, best, emptied = gain, (j, int(c)), redundant
@@ -228,7 +258,7 @@ def settle(
     added = [a for a, kept in zip(added, alive[len(found) :], strict=True) if kept]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
-        return settle(settled, points, index, settings, rivals)
+        return settle(settled, points, index, settings, rivals, refits, working)
     return settled
 
 
@@ -240,6 +270,7 @@ def _rival_gain(
     alone: NDArray[np.intp],
     p0: float,
     settings: Settings,
+    clears: Callable[[], bool] | None = None,
 ) -> tuple[int, NDArray[np.intp]]:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
     gains, and the partitions it leaves redundant (step 3). ``without`` is what the
@@ -252,8 +283,11 @@ def _rival_gain(
     the rival is in, is left without evidence of its own and is dropped (a part at a wrong
     place may be held by two partitions, each explaining half of its cells there); the
     cells it still explained alone count as lost. A rival is not a refit of the partition's
-    own cells, so the gain must exceed what chance could give on the cells the two contest
-    (the shift search's margin); else ``0``. (A version that also credited each dropped
+    own cells, so the gain must be significant: exceed what chance could give on the cells
+    the two contest (the shift search's margin), or, if it is positive but smaller, come
+    with the other kind of evidence, ``clears()``: the partition's free space crosses the
+    reference's walls significantly less often under the rival
+    (:meth:`_FreeSpaceTest.clears`); else ``0``. (A version that also credited each dropped
     partition with the smallest partition's cells, a cost per partition, replaced two small
     partitions by one transform that explained fewer cells: a degree one short.)
     """
@@ -268,7 +302,66 @@ def _rival_gain(
     gain = int(np.count_nonzero(after)) - explained
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
-    return (gain, redundant) if gain > margin else (0, _NO_CELLS)
+    if gain > margin or (gain > 0 and clears is not None and clears()):
+        return gain, redundant
+    return 0, _NO_CELLS
+
+
+class _FreeSpaceTest:
+    """Whether a rival transform clears a partition's free space (step 3 of the module
+    docstring): the partition's clear free cells (those whose nearest wall is its, as the
+    contradiction test of :mod:`~brokenness.measure.evidence` charges them) cross reference
+    walls at a significantly lower rate under the rival than under its transform.
+
+    Under a right transform a part's free space lands on reference walls only where the two
+    maps differ; under a wrong one (a twin of its room, turned by 90 or 180 degrees) about as
+    often as free space dropped at random. A part held at such a twin fits its walls there
+    about as well as in its true place, so the count of agreeing cells tells the two apart by
+    a few cells only (on the realistic benchmark's failing maps, 6-14 cells against a chance
+    margin of 21-31), while the rates of its free space differ by a factor of 5-10. The two
+    rates, ``x / n`` of each transform (``n`` free cells landing on known reference cells,
+    ``x`` of them on walls), are compared as Poisson counts: the fall must exceed ``z``
+    (the stopping rule's significance) standard deviations of the difference,
+    ``sqrt((x_old + 1) / n_old^2 + (x_new + 1) / n_new^2)``, and each rate must be
+    measurable (chance would put at least
+    :data:`~brokenness.measure.evidence.MIN_EXPECTED` of its cells on walls).
+
+    The free space is assigned once, from the partitions' members as given to the settle
+    step (the members do not change until its final reassignment), and only when a rival
+    needs it.
+    """
+
+    def __init__(
+        self,
+        found: list[Found],
+        points: NDArray[np.float64],
+        working: OccupancyMap,
+        index: ReferenceIndex,
+        settings: Settings,
+        owned: FreeSpace | None = None,
+    ) -> None:
+        self._args = (found, points, working, settings.threshold)
+        self._index = index
+        self._z = settings.significance
+        n_known = index.known_count
+        self._chance = float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
+        self._owned = owned
+
+    def clears(self, j: int, old: RigidTransform, new: RigidTransform) -> Callable[[], bool]:
+        """The test for partition ``j``, transform ``old`` replaced by ``new`` (a callable:
+        it runs only when asked)."""
+        return lambda: self._clears(j, old, new)
+
+    def _clears(self, j: int, old: RigidTransform, new: RigidTransform) -> bool:
+        if self._owned is None:
+            self._owned = free_space(*self._args)
+        n_old, x_old = self._owned.counts(j, old, self._index)
+        n_new, x_new = self._owned.counts(j, new, self._index)
+        if min(n_old, n_new) * self._chance < MIN_EXPECTED:
+            return False  # too few free cells on the reference to tell a rate
+        fall = x_old / n_old - x_new / n_new
+        spread = math.sqrt((x_old + 1.0) / n_old**2 + (x_new + 1.0) / n_new**2)
+        return fall > self._z * spread
 
 
 def _best_split(

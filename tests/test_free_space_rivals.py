@@ -1,0 +1,97 @@
+"""A rival judged by the free space as well as the walls (the settle step, step 3).
+
+Two rooms of the same size side by side, A and B. A has a short wall stub that B lacks, B a
+pillar in the middle that A lacks. The map holds both, room A moved by a bump; its partition
+is placed where room B is (its walls fit there as well as at home, but for the stub), and
+the true transform of A is offered as a rival. By the walls alone the rival gains only the
+stub's cells, fewer than chance could (the margin of the stopping rule's ``z``); but under
+the wrong placement A's free space covers B's pillar, and under the rival it lands on
+nothing: the contradiction of the partition's free space falls from about one free cell in
+twenty to none, far beyond ``z`` standard deviations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _breaking import SETTINGS, break_map, median_error
+
+from brokenness import OccupancyMap, RigidTransform
+from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.evidence import contradiction, free_space
+from brokenness.measure.partitions import Found
+from brokenness.measure.settle import settle
+
+#: Room A's bump in the map (cells, x and y).
+BUMP = (0.0, 30.0)
+
+
+def _rooms() -> tuple[OccupancyMap, np.ndarray, np.ndarray]:
+    """The reference (rooms A and B) and the masks of the two rooms' regions."""
+    states = np.full((170, 300), UNKNOWN, np.int8)
+    regions = []
+    for c0 in (20, 160):  # room A, room B: 100 x 100 cells, walls two cells thick
+        states[30:132, c0 : c0 + 102] = OCCUPIED
+        states[32:130, c0 + 2 : c0 + 100] = FREE
+        region = np.zeros(states.shape, bool)
+        region[25:137, c0 - 5 : c0 + 107] = True
+        regions.append(region)
+    states[32:46, 70:72] = OCCUPIED  # A's stub
+    states[70:91, 200:221] = OCCUPIED  # B's pillar
+    return OccupancyMap(states, 0.05), regions[0], regions[1]
+
+
+@pytest.fixture(scope="module")
+def case():
+    """The map, its points, room A's cells, the partitions (A at B's place), A's true
+    transform and the reference's index."""
+    reference, room_a, room_b = _rooms()
+    moved = RigidTransform(0.0, *BUMP)
+    broken, truths = break_map(reference, [room_a, room_b], [moved, RigidTransform()], pad=10)
+    points = cell_points(broken.occupied)
+    in_a = truths[0].apply(points)[:, 0] < 140  # left of the gap between the rooms
+    wrong = RigidTransform(0.0, 140.0, 0.0).compose(truths[0])  # A's walls onto B's
+    found = [
+        Found(truths[1], np.flatnonzero(~in_a), 1.0, 0.0),
+        Found(wrong, np.flatnonzero(in_a), 1.0, 0.0),
+    ]
+    return broken, points, in_a, found, truths[0], ReferenceIndex.build(reference)
+
+
+def test_free_space_counts_are_those_of_the_contradiction(case) -> None:
+    broken, points, _, found, truth, index = case
+    owned = free_space(found, points, broken, SETTINGS.threshold)
+    whole = contradiction(found, points, broken, index, SETTINGS.threshold)
+    again = contradiction(found, points, broken, index, SETTINGS.threshold, owned)
+    assert np.array_equal(whole.counted, again.counted)
+    assert np.array_equal(whole.contradicting, again.contradicting)
+    for j, f in enumerate(found):
+        assert owned.counts(j, f.transform, index) == (whole.counted[j], whole.contradicting[j])
+    # A's free space on B's pillar under the wrong placement, on nothing under its own
+    counted, crossing = owned.counts(1, found[1].transform, index)
+    assert crossing > 0.03 * counted
+    counted, crossing = owned.counts(1, truth, index)
+    assert counted > 5000 and crossing == 0
+
+
+def test_walls_alone_do_not_take_the_rival(case) -> None:
+    _, points, in_a, found, truth, index = case
+    settled = settle(found, points, index, SETTINGS, [truth])
+    assert median_error(settled[1].transform, truth, points[in_a]) > 100.0
+
+
+def test_the_free_space_takes_the_rival(case) -> None:
+    broken, points, in_a, found, truth, index = case
+    settled = settle(found, points, index, SETTINGS, [truth], working=broken)
+    assert len(settled) == 2
+    assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
+    assert settled[0].transform is found[0].transform
+
+
+def test_the_free_space_does_not_move_a_right_placement(case) -> None:
+    # the other way round: A at home, B's placement offered as a rival gains no cell
+    broken, points, in_a, found, truth, index = case
+    right = [found[0], Found(truth, found[1].members, 1.0, 0.0)]
+    settled = settle(right, points, index, SETTINGS, [found[1].transform], working=broken)
+    assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
