@@ -51,6 +51,7 @@ __all__ = [
     "Contradiction",
     "FreeSpace",
     "WallContradiction",
+    "chance_rate",
     "contradiction",
     "free_space",
     "wall_contradiction",
@@ -153,8 +154,6 @@ class FreeSpace:
         The clear free cells looked up (columns and rows of the working grid).
     owner : ndarray of int16, shape (M,)
         The partition (index in the list given) that owns each.
-    partitions : int
-        How many partitions were given.
     stride : int
         The clear free cells of every ``stride``-th row and column were taken.
     """
@@ -162,11 +161,10 @@ class FreeSpace:
     x: NDArray[np.int32]
     y: NDArray[np.int32]
     owner: NDArray[np.int16]
-    partitions: int
     stride: int
 
-    def points(self, which: NDArray[np.bool_] | slice) -> NDArray[np.float64]:
-        """The cells ``which`` selects, as points ``(x, y)`` (float64)."""
+    def points(self, which: NDArray[np.bool_] | NDArray[np.intp]) -> NDArray[np.float64]:
+        """The cells ``which`` selects (a mask or indices), as points ``(x, y)`` (float64)."""
         return np.column_stack([self.x[which], self.y[which]]).astype(np.float64)
 
     def counts(self, j: int, transform: RigidTransform, index: ReferenceIndex) -> tuple[int, int]:
@@ -174,6 +172,13 @@ class FreeSpace:
         ``transform``: those that land on known reference cells, and those of them that land
         on occupied ones."""
         return _landing(self.points(self.owner == j), transform, index)
+
+
+def chance_rate(index: ReferenceIndex) -> float:
+    """``q``: the share of the reference's known cells that are occupied, the rate at which
+    free space dropped at random lands on walls (``0`` for a reference that knows nothing)."""
+    n_known = index.known_count
+    return float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
 
 
 def _landing(
@@ -226,25 +231,20 @@ def contradiction(
     -------
     Contradiction
     """
-    n_known = index.known_count
-    chance = float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
     k = len(found)
     if owned is None:
         owned = free_space(found, points, working, threshold)
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
     for start in range(0, owned.owner.size, _CHUNK):  # bounded temporaries
-        chunk = slice(start, start + _CHUNK)
-        owner = owned.owner[chunk]
-        x, y = owned.x[chunk], owned.y[chunk]
+        owner = owned.owner[start : start + _CHUNK]
         for j, f in enumerate(found):
-            sel = owner == j
-            if sel.any():
-                pts = np.column_stack([x[sel], y[sel]]).astype(np.float64)
-                n, hits = _landing(pts, f.transform, index)
+            sel = np.flatnonzero(owner == j)
+            if sel.size:
+                n, hits = _landing(owned.points(sel + start), f.transform, index)
                 counted[j] += n
                 contradicting[j] += hits
-    return Contradiction(counted, contradicting, chance, owned.stride)
+    return Contradiction(counted, contradicting, chance_rate(index), owned.stride)
 
 
 def free_space(
@@ -256,7 +256,7 @@ def free_space(
     """The map's clear free cells and the partition of ``found`` that owns each (the one of
     the nearest wall of a partition; arguments as for :func:`contradiction`)."""
     k = len(found)
-    empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), k, 1)
+    empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), 1)
     states = working.states
     # the box of the map's free cells: free space outside it does not exist
     free_box = _free_box(states)
@@ -320,7 +320,6 @@ def free_space(
         np.empty(clear.size, np.int32),
         np.empty(clear.size, np.int32),
         np.empty(clear.size, np.int16),
-        k,
         stride,
     )
     for start in range(0, clear.size, _CHUNK):

@@ -493,16 +493,7 @@ def recover(
     if around is None:
         around = occupied_around(points, working.shape)
     threshold, min_cells = settings.threshold, settings.min_cells
-    search = _Search(
-        points,
-        working,
-        index,
-        registrar,
-        reference,
-        around,
-        index.chance_agreement(threshold),
-        settings,
-    )
+    search = _Search.of(points, working, index, registrar, reference, settings, around)
     found = reassign(found, points, index, threshold, min_cells)
     rivals: list[RigidTransform] = []
     while found and len(found) < settings.max_partitions and not exhausted(registrar):
@@ -582,16 +573,7 @@ def relocation_rivals(
     of its cells. :func:`~brokenness.measure.settle.settle` then judges every rival by the
     usual count, and by the free space.
     """
-    search = _Search(
-        points,
-        working,
-        index,
-        registrar,
-        reference,
-        around,
-        index.chance_agreement(settings.threshold),
-        settings,
-    )
+    search = _Search.of(points, working, index, registrar, reference, settings, around)
     return _relocations(search, found, NEIGHBOURHOOD_RADIUS, which)
 
 
@@ -606,18 +588,11 @@ def _relocations(
     its cells are what the first step registered."""
     if len(found) < 2:
         return []
-    pts = search.points
-    rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
-    everything = np.ones(pts.shape[0], dtype=bool)
     sets: list[NDArray[np.intp]] = []
     for j in range(len(found)) if which is None else which:
-        f = found[j]
-        sets.append(f.members)
+        sets.append(found[j].members)
         if radius is not None:
-            mine = np.zeros(pts.shape[0], dtype=bool)
-            mine[f.members] = True
-            near = _window_counts(rows, cols, mine, everything, search.working.shape, radius)
-            sets.append(np.flatnonzero(near > 0))
+            sets.append(_neighbourhood(found[j].members, search, radius))
     out: list[RigidTransform] = []
     for members in sets:
         if exhausted(search.registrar):
@@ -626,6 +601,17 @@ def _relocations(
         if elsewhere is not None:
             out.append(elsewhere)
     return out
+
+
+def _neighbourhood(members: NDArray[np.intp], search: _Search, radius: int) -> NDArray[np.intp]:
+    """The map's occupied cells within ``radius`` cells (a square window) of ``members``."""
+    pts = search.points
+    rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
+    mine = np.zeros(pts.shape[0], dtype=bool)
+    mine[members] = True
+    everything = np.ones(pts.shape[0], dtype=bool)
+    near = _window_counts(rows, cols, mine, everything, search.working.shape, radius)
+    return np.flatnonzero(near > 0)
 
 
 def _clears_free_space(
@@ -679,6 +665,21 @@ class _Search:
     around: NDArray[np.float64]  # occupied cells in the window around each cell
     p0: float  # chance agreement of a random placement (bounds the rivals' chance)
     settings: Settings
+
+    @classmethod
+    def of(
+        cls,
+        points: NDArray[np.float64],
+        working: OccupancyMap,
+        index: ReferenceIndex,
+        registrar: Registrar,
+        reference: Any,
+        settings: Settings,
+        around: NDArray[np.float64],
+    ) -> _Search:
+        """The search for a map (arguments as for :func:`recover`)."""
+        p0 = index.chance_agreement(settings.threshold)
+        return cls(points, working, index, registrar, reference, around, p0, settings)
 
     def lost_partition(
         self, found: list[Found], cells: NDArray[np.bool_]

@@ -384,9 +384,9 @@ def _tested(
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
     and, if settling changed anything, drop again (``around``: the occupied cells around
     each, :func:`~brokenness.measure.recovery.occupied_around`)."""
-    found = consolidate(found, points, index, settings)
-    found = drop_incoherent(found, points, index, settings, working.shape, around)
-    found = drop_redundant(found, points, index, settings)
+    found = _real(
+        consolidate(found, points, index, settings), points, working, index, settings, around
+    )
     return _settled(found, points, working, index, settings, rivals, around)
 
 
@@ -405,7 +405,21 @@ def _settled(
     if settled is found:
         return found
     # the tests again: settling moves transforms, it adds nothing
-    found = drop_incoherent(settled, points, index, settings, working.shape, around)
+    return _real(settled, points, working, index, settings, around)
+
+
+def _real(
+    found: list[Found],
+    points: NDArray[np.float64],
+    working: OccupancyMap,
+    index: ReferenceIndex,
+    settings: Settings,
+    around: NDArray[np.float64],
+) -> list[Found]:
+    """The partitions that are real (step 7 of the README): coherent
+    (:func:`~brokenness.measure.recovery.drop_incoherent`), and not a redundant placement
+    (:func:`~brokenness.measure.partitions.drop_redundant`)."""
+    found = drop_incoherent(found, points, index, settings, working.shape, around)
     return drop_redundant(found, points, index, settings)
 
 
@@ -454,8 +468,7 @@ def _relocated(
     if moved is found:
         return found, evidence
     moved = settle(moved, points, index, settings, rivals, working=working)
-    found = drop_incoherent(moved, points, index, settings, working.shape, around)
-    return drop_redundant(found, points, index, settings), None
+    return _real(moved, points, working, index, settings, around), None
 
 
 def _fits(ratio: float | None) -> bool:

@@ -79,7 +79,7 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
-from .evidence import MIN_EXPECTED, FreeSpace, free_space
+from .evidence import MIN_EXPECTED, FreeSpace, chance_rate, free_space
 from .options import Settings
 from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
@@ -343,8 +343,7 @@ class _FreeSpaceTest:
         self._args = (found, points, working, settings.threshold)
         self._index = index
         self._z = settings.significance
-        n_known = index.known_count
-        self._chance = float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
+        self._chance = chance_rate(index)
         self._owned = owned
 
     def clears(self, j: int, old: RigidTransform, new: RigidTransform) -> Callable[[], bool]:
