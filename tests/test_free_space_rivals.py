@@ -19,7 +19,7 @@ from _breaking import SETTINGS, break_map, median_error
 from brokenness import OccupancyMap, RigidTransform
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.evidence import contradiction, free_space
+from brokenness.measure.evidence import MAP_RATIO, Contradiction, contradiction, free_space
 from brokenness.measure.partitions import Found
 from brokenness.measure.settle import settle
 
@@ -95,3 +95,24 @@ def test_the_free_space_does_not_move_a_right_placement(case) -> None:
     right = [found[0], Found(truth, found[1].members, 1.0, 0.0)]
     settled = settle(right, points, index, SETTINGS, [found[1].transform], working=broken)
     assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
+
+
+def test_only_a_partition_whose_free_space_fails_is_searched_again(case) -> None:
+    # the relocation's choice (``Contradiction.doubtful``): A at B's place crosses B's pillar
+    broken, points, _, found, truth, index = case
+    z = SETTINGS.significance
+    wrong = contradiction(found, points, broken, index, SETTINGS.threshold)
+    assert wrong.doubtful(z) == [1]
+    assert wrong.upper_ratio(z, 1) > MAP_RATIO >= wrong.upper_ratio(z, 0)
+    right = [found[0], Found(truth, found[1].members, 1.0, 0.0)]
+    assert contradiction(right, points, broken, index, SETTINGS.threshold).doubtful(z) == []
+
+
+def test_a_partition_bound_is_the_map_bound_of_its_counts() -> None:
+    counts = Contradiction(np.array([4000, 50, 0]), np.array([40, 0, 0]), 0.1, 1)
+    for i in range(3):
+        alone = Contradiction(counts.counted[i : i + 1], counts.contradicting[i : i + 1], 0.1, 1)
+        assert counts.upper_ratio(6.0, i) == alone.upper_ratio(6.0)
+    # 4000 cells at a tenth of chance: in place; 50 cells (5 on walls by chance) cannot show
+    # it, even with none on walls; no cell at all cannot either
+    assert counts.doubtful(6.0) == [1, 2]

@@ -122,20 +122,28 @@ class Contradiction:
             return None
         return (x / n) / self.chance
 
-    def upper_ratio(self, z: float) -> float:
-        """Upper confidence bound, ``z`` standard deviations, of the whole map's ratio.
+    def upper_ratio(self, z: float, i: int | None = None) -> float:
+        """Upper confidence bound, ``z`` standard deviations, of the whole map's ratio (or,
+        given ``i``, of partition ``i``'s).
 
         The contradicting cells are counted as a Poisson count ``X``; its upper bound is
         ``X + z sqrt(X + 1) + z^2 / 3`` (a close one-sided bound also for small counts), over
         the count chance would give (``n q``). ``inf`` when nothing is counted: a map that
         shows no free space on the reference cannot show that it fits there.
         """
-        n = int(self.counted.sum())
-        x = int(self.contradicting.sum())
+        n = int(self.counted.sum() if i is None else self.counted[i])
+        x = int(self.contradicting.sum() if i is None else self.contradicting[i])
         expected = n * self.chance
         if expected <= 0.0:
             return math.inf
         return (x + z * math.sqrt(x + 1.0) + z * z / 3.0) / expected
+
+    def doubtful(self, z: float) -> list[int]:
+        """The partitions whose free space, on its own, would not pass the map's test: the
+        upper bound of its ratio, at ``z`` standard deviations, over :data:`MAP_RATIO` (a
+        rate that crosses walls too often, or too few cells to show that it does not).
+        """
+        return [i for i in range(self.counted.size) if self.upper_ratio(z, i) > MAP_RATIO]
 
 
 @dataclass(frozen=True)

@@ -470,10 +470,11 @@ def recover(
     settings : Settings
         As for the recursion; each round asks for twice its ``max_candidates`` hypotheses.
     relocate : bool, optional
-        Also register each partition's own cells alone, once the new partitions are found,
-        and return the best hypothesis that puts them elsewhere than every partition does as
-        a rival (a part at a twin of its room: its own cells give its true place among their
-        hypotheses).
+        Also register the own cells of each partition whose free space does not show that
+        it is in place (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`) alone,
+        once the new partitions are found, and return the best hypothesis that puts them
+        elsewhere than every partition does as a rival (a part at a twin of its room: its
+        own cells give its true place among their hypotheses).
     around : ndarray, optional
         :func:`occupied_around` of ``points`` (computed here if not given).
 
@@ -542,8 +543,11 @@ def recover(
         if len(grown) <= len(found):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
-    if relocate:
-        rivals += _relocations(search, found)
+    if relocate and len(found) > 1:
+        doubtful = contradiction(found, points, working, index, threshold).doubtful(
+            settings.significance
+        )
+        rivals += _relocations(search, found, None, doubtful)
     return found, rivals
 
 

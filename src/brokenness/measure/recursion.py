@@ -28,9 +28,10 @@ The recursion, for a map M and a reference R::
     settle each transform: refits on tiles of its cells, shifts, splits, rivals
         (measure.settle), and drop again
     recover again (and the steps after it) while new partitions are found
-    relocate: each partition whose free space crosses the reference's walls too often,
-        its cells and their neighbourhood registered alone; the best hypotheses offered
-        as rivals to the settle step (taken on agreement, or on free space that fits)
+    relocate: each partition whose free space does not show that it is in place (it
+        crosses the reference's walls too often, or too little of it is seen), its cells
+        and their neighbourhood registered alone; the best hypotheses offered as rivals
+        to the settle step (taken on agreement, or on free space that fits)
     measured only if the map's free space does not cross the reference's walls
         (measure.evidence): else not the same place, no degree
 
@@ -443,11 +444,13 @@ def _relocated(
     anything did.
 
     A partition *may be at a wrong place* when its free space, on its own, would not pass the
-    map's test: it crosses the reference's walls at more than :data:`MAP_RATIO` of the chance
-    rate, or too little of it lands on the reference to tell. A placement at a twin of the
-    part's room puts its free space on walls about as often as chance (on the failing maps
-    of the realistic benchmark traced, 0.7-1.9 times); a partition whose free space fits is
-    not searched again (the registrations are most of the cost of this step).
+    map's test (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`): the upper bound
+    of its rate of crossing the reference's walls, at the stopping rule's significance, is
+    over :data:`MAP_RATIO` of the chance rate (it crosses them too often, or too little of it
+    lands on the reference to show that it does not). A placement at a twin of the part's
+    room puts its free space on walls about as often as chance (on the failing maps of the
+    realistic benchmark traced, 0.7-1.9 times); a partition whose free space shows that it
+    is in place is not searched again (the registrations are most of the cost of this step).
 
     Returns the partitions and, if they are the ones given, their contradiction (for
     :func:`_judge`; else ``None``).
@@ -456,7 +459,7 @@ def _relocated(
         return found, None  # a lone partition's cells are what the first step registered
     owned = free_space(found, points, working, settings.threshold)
     evidence = contradiction(found, points, working, index, settings.threshold, owned)
-    which = [j for j in range(len(found)) if not _fits(evidence.ratio(j))]
+    which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(
         found, points, working, index, registrar, whole, settings, around, which
     )
@@ -469,12 +472,6 @@ def _relocated(
         return found, evidence
     moved = settle(moved, points, index, settings, rivals, working=working)
     return _real(moved, points, working, index, settings, around), None
-
-
-def _fits(ratio: float | None) -> bool:
-    """Whether a partition's free-space ratio (observed contradiction over chance; ``None``:
-    too few cells to tell) passes the map's limit, :data:`MAP_RATIO`."""
-    return ratio is not None and ratio <= MAP_RATIO
 
 
 def _wider(registrar: Registrar) -> Registrar:
