@@ -19,7 +19,13 @@ from _breaking import SETTINGS, break_map, median_error
 from brokenness import OccupancyMap, RigidTransform
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.evidence import MAP_RATIO, Contradiction, contradiction, free_space
+from brokenness.measure.evidence import (
+    MAP_RATIO,
+    Contradiction,
+    clear_free,
+    contradiction,
+    free_space,
+)
 from brokenness.measure.partitions import Found
 from brokenness.measure.settle import settle
 
@@ -61,9 +67,10 @@ def case():
 
 def test_free_space_counts_are_those_of_the_contradiction(case) -> None:
     broken, points, _, found, truth, index = case
-    owned = free_space(found, points, broken, SETTINGS.threshold)
-    whole = contradiction(found, points, broken, index, SETTINGS.threshold)
-    again = contradiction(found, points, broken, index, SETTINGS.threshold, owned)
+    clear = clear_free(broken, SETTINGS.threshold)
+    owned = free_space(found, points, clear)
+    whole = contradiction(found, points, clear, index)
+    again = contradiction(found, points, clear, index, owned)
     assert np.array_equal(whole.counted, again.counted)
     assert np.array_equal(whole.contradicting, again.contradicting)
     for j, f in enumerate(found):
@@ -83,7 +90,9 @@ def test_walls_alone_do_not_take_the_rival(case) -> None:
 
 def test_the_free_space_takes_the_rival(case) -> None:
     broken, points, in_a, found, truth, index = case
-    settled = settle(found, points, index, SETTINGS, [truth], working=broken)
+    settled = settle(
+        found, points, index, SETTINGS, [truth], clear=clear_free(broken, SETTINGS.threshold)
+    )
     assert len(settled) == 2
     assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
     assert settled[0].transform is found[0].transform
@@ -93,7 +102,14 @@ def test_the_free_space_does_not_move_a_right_placement(case) -> None:
     # the other way round: A at home, B's placement offered as a rival gains no cell
     broken, points, in_a, found, truth, index = case
     right = [found[0], Found(truth, found[1].members, 1.0, 0.0)]
-    settled = settle(right, points, index, SETTINGS, [found[1].transform], working=broken)
+    settled = settle(
+        right,
+        points,
+        index,
+        SETTINGS,
+        [found[1].transform],
+        clear=clear_free(broken, SETTINGS.threshold),
+    )
     assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
 
 
@@ -101,11 +117,12 @@ def test_only_a_partition_whose_free_space_fails_is_searched_again(case) -> None
     # the relocation's choice (``Contradiction.doubtful``): A at B's place crosses B's pillar
     broken, points, _, found, truth, index = case
     z = SETTINGS.significance
-    wrong = contradiction(found, points, broken, index, SETTINGS.threshold)
+    clear = clear_free(broken, SETTINGS.threshold)
+    wrong = contradiction(found, points, clear, index)
     assert wrong.doubtful(z) == [1]
     assert wrong.upper_ratio(z, 1) > MAP_RATIO >= wrong.upper_ratio(z, 0)
     right = [found[0], Found(truth, found[1].members, 1.0, 0.0)]
-    assert contradiction(right, points, broken, index, SETTINGS.threshold).doubtful(z) == []
+    assert contradiction(right, points, clear, index).doubtful(z) == []
 
 
 def test_a_partition_bound_is_the_map_bound_of_its_counts() -> None:

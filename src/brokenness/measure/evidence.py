@@ -20,10 +20,13 @@ This module measures that, once the partitions are known:
 * the *chance rate* ``q`` is the share of the known reference cells that are occupied: the
   contradiction rate of free space dropped at random on the reference.
 
-:func:`contradiction` returns, per partition and for the whole map, the contradicting and the
-counted cells. The ratio of the observed rate to ``q`` over the whole map decides whether the
-map is of the reference's place (:data:`MAP_RATIO`). Per partition it is reported, not
-judged: the free space around a small partition is mostly seen from the scans of other
+:func:`clear_free` finds the clear free cells (once a call: they do not depend on the
+partitions), :func:`free_space` gives each to its partition, and :func:`contradiction`
+returns, per partition and for the whole map, the contradicting and the counted cells. The
+ratio of the observed rate to ``q`` over the whole map decides whether the map is of the
+reference's place (:data:`MAP_RATIO`). Per partition it is reported, and it chooses the
+partitions searched again (:meth:`Contradiction.doubtful`), but it does not judge them:
+the free space around a small partition is mostly seen from the scans of other
 partitions (a broken map's free space is one union), so a true 4 % partition of a simulated
 map was measured at 1.19 times the chance rate.
 """
@@ -50,8 +53,10 @@ __all__ = [
     "MAP_RATIO",
     "Contradiction",
     "FreeSpace",
+    "ClearFree",
     "WallContradiction",
     "chance_rate",
+    "clear_free",
     "contradiction",
     "free_space",
     "wall_contradiction",
@@ -212,9 +217,8 @@ def _landing(
 def contradiction(
     found: list[Found],
     points: NDArray[np.float64],
-    working: OccupancyMap,
+    clear: ClearFree,
     index: ReferenceIndex,
-    threshold: float,
     owned: FreeSpace | None = None,
 ) -> Contradiction:
     """How often the map's clear free space lands on reference walls, per partition.
@@ -224,14 +228,11 @@ def contradiction(
     found : list of Found
         The partitions (members index ``points``).
     points : ndarray, shape (N, 2)
-        The map's occupied cells ``(x, y)`` in ``working``'s grid, row-major.
-    working : OccupancyMap
-        The map at the working resolution (that of ``index``'s reference).
+        The map's occupied cells ``(x, y)`` in the working grid, row-major.
+    clear : ClearFree
+        The map's clear free cells (:func:`clear_free`, at the working resolution).
     index : ReferenceIndex
         The reference, at the working resolution.
-    threshold : float
-        Agreement threshold ``c`` (cells); free cells within ``2 c`` of a map wall are not
-        counted.
     owned : FreeSpace, optional
         :func:`free_space` of ``found`` (their members; made here if not given).
 
@@ -241,7 +242,7 @@ def contradiction(
     """
     k = len(found)
     if owned is None:
-        owned = free_space(found, points, working, threshold)
+        owned = free_space(found, points, clear)
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
     for start in range(0, owned.owner.size, _CHUNK):  # bounded temporaries
@@ -255,21 +256,40 @@ def contradiction(
     return Contradiction(counted, contradicting, chance_rate(index), owned.stride)
 
 
-def free_space(
-    found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    threshold: float,
-) -> FreeSpace:
-    """The map's clear free cells and the partition of ``found`` that owns each (the one of
-    the nearest wall of a partition; arguments as for :func:`contradiction`)."""
-    k = len(found)
-    empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), 1)
+@dataclass(frozen=True)
+class ClearFree:
+    """The map's clear free cells (an even grid of them): free, and farther than ``2 c`` from
+    every map wall.
+
+    What :func:`free_space` needs of the map whatever its partitions: made once a call by
+    :func:`clear_free` (passes over the grid), shared by every contradiction of the call.
+
+    Attributes
+    ----------
+    x, y : ndarray of int32, shape (M,)
+        The clear free cells looked up (columns and rows of the working grid).
+    stride : int
+        The clear free cells of every ``stride``-th row and column were taken.
+    box : tuple of int
+        ``(row0, row1, col0, col1)`` (half-open): the box of the map's free cells with the
+        walls around them (a margin of ``2 c`` and a cell), in which their walls are looked
+        for.
+    """
+
+    x: NDArray[np.int32]
+    y: NDArray[np.int32]
+    stride: int
+    box: tuple[int, int, int, int]
+
+
+def clear_free(working: OccupancyMap, threshold: float) -> ClearFree:
+    """The clear free cells of ``working`` (see :class:`ClearFree`; ``threshold``: the
+    agreement threshold ``c`` in cells)."""
     states = working.states
     # the box of the map's free cells: free space outside it does not exist
     free_box = _free_box(states)
-    if k == 0 or free_box is None:
-        return empty
+    if free_box is None:
+        return ClearFree(np.zeros(0, np.int32), np.zeros(0, np.int32), 1, (0, 0, 0, 0))
     # clear free cells: farther than 2c from every map wall (a disc of radius 2c around walls);
     # the box takes the walls around the free cells along (a margin of the disc's radius and
     # a cell: the walls that bound the free space, and that mark free cells as near a wall)
@@ -286,14 +306,26 @@ def free_space(
     for a in range(0, clear_mask.shape[0], _BAND_ROWS):  # ... nor a temporary of the box
         clear_mask[a : a + _BAND_ROWS] &= box[a : a + _BAND_ROWS] == FREE
     n_clear = int(np.count_nonzero(clear_mask))
-    if n_clear == 0:
-        return empty
     # an even grid of at most about _MAX_FREE of them (every stride-th row and column)
     stride = max(1, math.ceil(math.sqrt(n_clear / _MAX_FREE)))
     sub_mask = clear_mask[::stride, ::stride]
-    sub_width = sub_mask.shape[1]
-    clear = np.flatnonzero(sub_mask)  # flat indices in the strided grid
+    rows, cols = np.nonzero(sub_mask)  # row-major, as the flat indices of the strided grid
     del clear_mask, sub_mask
+    return ClearFree(
+        (cols * stride + c0).astype(np.int32),
+        (rows * stride + r0).astype(np.int32),
+        stride,
+        (r0, r1, c0, c1),
+    )
+
+
+def free_space(found: list[Found], points: NDArray[np.float64], clear: ClearFree) -> FreeSpace:
+    """The map's clear free cells and the partition of ``found`` that owns each (the one of
+    the nearest wall of a partition; arguments as for :func:`contradiction`)."""
+    empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), 1)
+    if not found or clear.x.size == 0:
+        return empty
+    r0, r1, c0, c1 = clear.box
     # the walls that label free space: cells of a partition, not isolated (a speck of noise
     # that one partition's transform happens to explain must not claim the room around it)
     owner = np.full(points.shape[0], -1, dtype=np.int16)
@@ -322,22 +354,14 @@ def free_space(
     )  # labels number the source blocks 1.. row-major, as boolean indexing lists them
     owners_of_blocks = block_owner[is_block]
     del block_owner, is_block
-    # the cells and their owners, written chunk by chunk into arrays of small integers
-    # (bounded temporaries, whatever the map)
-    out = FreeSpace(
-        np.empty(clear.size, np.int32),
-        np.empty(clear.size, np.int32),
-        np.empty(clear.size, np.int16),
-        stride,
-    )
-    for start in range(0, clear.size, _CHUNK):
-        rows, cols = np.divmod(clear[start : start + _CHUNK], sub_width)
-        rows *= stride
-        cols *= stride
-        end = start + rows.size
-        out.owner[start:end] = owners_of_blocks.take(cells_at(nearest, rows // 2, cols // 2) - 1)
-        out.x[start:end] = cols + c0
-        out.y[start:end] = rows + r0
+    # the owners, looked up chunk by chunk (bounded temporaries, whatever the map)
+    out = FreeSpace(clear.x, clear.y, np.empty(clear.x.size, np.int16), clear.stride)
+    for start in range(0, clear.x.size, _CHUNK):
+        rows = clear.y[start : start + _CHUNK].astype(np.intp) - r0
+        cols = clear.x[start : start + _CHUNK].astype(np.intp) - c0
+        out.owner[start : start + rows.size] = owners_of_blocks.take(
+            cells_at(nearest, rows // 2, cols // 2) - 1
+        )
     return out
 
 

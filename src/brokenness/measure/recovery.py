@@ -79,7 +79,7 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .evidence import Contradiction, contradiction
+from .evidence import ClearFree, Contradiction, clear_free, contradiction
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
@@ -449,6 +449,7 @@ def recover(
     settings: Settings,
     relocate: bool = False,
     around: NDArray[np.float64] | None = None,
+    clear: ClearFree | None = None,
 ) -> tuple[list[Found], list[RigidTransform]]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
@@ -477,6 +478,9 @@ def recover(
         own cells give its true place among their hypotheses).
     around : ndarray, optional
         :func:`occupied_around` of ``points`` (computed here if not given).
+    clear : ClearFree, optional
+        :func:`~brokenness.measure.evidence.clear_free` of ``working`` (computed here if not
+        given).
 
     Returns
     -------
@@ -494,6 +498,8 @@ def recover(
     if around is None:
         around = occupied_around(points, working.shape)
     threshold, min_cells = settings.threshold, settings.min_cells
+    if clear is None:
+        clear = clear_free(working, threshold)
     search = _Search.of(points, working, index, registrar, reference, settings, around)
     found = reassign(found, points, index, threshold, min_cells)
     rivals: list[RigidTransform] = []
@@ -531,8 +537,8 @@ def recover(
             if len(grown) <= len(found):
                 continue
             if before is None:
-                before = contradiction(found, points, working, index, threshold)
-            if _clears_free_space(before, grown, points, working, index, settings):
+                before = contradiction(found, points, clear, index)
+            if _clears_free_space(before, grown, points, clear, index, settings):
                 new = taken
                 break
         if new is None:
@@ -544,9 +550,7 @@ def recover(
             break  # it kept too few cells once every cell went to its best partition
         found = grown
     if relocate and len(found) > 1:
-        doubtful = contradiction(found, points, working, index, threshold).doubtful(
-            settings.significance
-        )
+        doubtful = contradiction(found, points, clear, index).doubtful(settings.significance)
         rivals += _relocations(search, found, None, doubtful)
     return found, rivals
 
@@ -622,7 +626,7 @@ def _clears_free_space(
     before: Contradiction,
     grown: list[Found],
     points: NDArray[np.float64],
-    working: OccupancyMap,
+    clear: ClearFree,
     index: ReferenceIndex,
     settings: Settings,
 ) -> bool:
@@ -641,7 +645,7 @@ def _clears_free_space(
     must exceed ``z`` standard deviations of the difference of those two Poisson counts,
     ``z sqrt(fall + 2 x_new)``.
     """
-    after = contradiction(grown, points, working, index, settings.threshold)
+    after = contradiction(grown, points, clear, index)
     fall = int(before.contradicting.sum()) - int(after.contradicting.sum())
     x_new = int(after.contradicting[-1])
     return fall > 0 and fall > settings.significance * math.sqrt(fall + 2 * x_new)

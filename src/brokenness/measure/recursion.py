@@ -129,7 +129,15 @@ from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
 from .choice import mostly_on_claimed, prefer_unexplained
-from .evidence import MAP_RATIO, Contradiction, contradiction, free_space, wall_contradiction
+from .evidence import (
+    MAP_RATIO,
+    ClearFree,
+    Contradiction,
+    clear_free,
+    contradiction,
+    free_space,
+    wall_contradiction,
+)
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -308,19 +316,25 @@ def _compute(
     whole = prepared_reference(registrar, index.reference, index.occupied, uses_free, as_cells)
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
-    around = occupied_around(points, working.shape)  # of the map alone: once a call
-    found, rivals = recover(found, points, working, index, thorough, whole, settings, True, around)
-    found = _tested(found, points, working, index, settings, rivals, around)
+    # of the map alone, once a call: the occupied cells around each, the clear free cells
+    around = occupied_around(points, working.shape)
+    clear = clear_free(working, settings.threshold)
+    found, rivals = recover(
+        found, points, working, index, thorough, whole, settings, True, around, clear
+    )
+    found = _tested(found, points, working, index, settings, rivals, around, clear)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
         again, rivals = recover(
-            found, points, working, index, thorough, whole, settings, False, around
+            found, points, working, index, thorough, whole, settings, False, around, clear
         )
         if len(again) <= len(found):
             break
-        found = _tested(again, points, working, index, settings, rivals, around)
-    found, evidence = _relocated(found, points, working, index, thorough, whole, settings, around)
+        found = _tested(again, points, working, index, settings, rivals, around, clear)
+    found, evidence = _relocated(
+        found, points, working, index, thorough, whole, settings, around, clear
+    )
     del whole, around  # the prepared reference (its distance map): no registration from here on
-    reason, map_ratio, map_bound, ratios = _judge(found, points, working, index, settings, evidence)
+    reason, map_ratio, map_bound, ratios = _judge(found, points, clear, index, settings, evidence)
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
     )
@@ -380,15 +394,17 @@ def _tested(
     settings: Settings,
     rivals: list[RigidTransform],
     around: NDArray[np.float64],
+    clear: ClearFree,
 ) -> list[Found]:
     """The tests of what the recursion and the recovery found, in order: join one-piece
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
     and, if settling changed anything, drop again (``around``: the occupied cells around
-    each, :func:`~brokenness.measure.recovery.occupied_around`)."""
+    each, :func:`~brokenness.measure.recovery.occupied_around`; ``clear``: the map's clear
+    free cells, :func:`~brokenness.measure.evidence.clear_free`)."""
     found = _real(
         consolidate(found, points, index, settings), points, working, index, settings, around
     )
-    return _settled(found, points, working, index, settings, rivals, around)
+    return _settled(found, points, working, index, settings, rivals, around, clear)
 
 
 def _settled(
@@ -399,10 +415,11 @@ def _settled(
     settings: Settings,
     rivals: list[RigidTransform],
     around: NDArray[np.float64],
+    clear: ClearFree,
 ) -> list[Found]:
     """Settle the transforms (offering ``rivals``) and, if that changed anything, drop the
     partitions that are no longer real (the last tests of :func:`_tested`)."""
-    settled = settle(found, points, index, settings, rivals, working=working)
+    settled = settle(found, points, index, settings, rivals, clear=clear)
     if settled is found:
         return found
     # the tests again: settling moves transforms, it adds nothing
@@ -433,6 +450,7 @@ def _relocated(
     whole: Any,
     settings: Settings,
     around: NDArray[np.float64],
+    clear: ClearFree,
 ) -> tuple[list[Found], Contradiction | None]:
     """The settled partitions, each that may be at a wrong place offered the best places that
     its own cells and its neighbourhood give registered alone
@@ -457,20 +475,18 @@ def _relocated(
     """
     if len(found) < 2:
         return found, None  # a lone partition's cells are what the first step registered
-    owned = free_space(found, points, working, settings.threshold)
-    evidence = contradiction(found, points, working, index, settings.threshold, owned)
+    owned = free_space(found, points, clear)
+    evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(
         found, points, working, index, registrar, whole, settings, around, which
     )
     if not rivals:
         return found, evidence
-    moved = settle(
-        found, points, index, settings, rivals, refits=False, working=working, owned=owned
-    )
+    moved = settle(found, points, index, settings, rivals, refits=False, clear=clear, owned=owned)
     if moved is found:
         return found, evidence
-    moved = settle(moved, points, index, settings, rivals, working=working)
+    moved = settle(moved, points, index, settings, rivals, clear=clear)
     return _real(moved, points, working, index, settings, around), None
 
 
@@ -526,7 +542,7 @@ def _region_candidates(
 def _judge(
     found: list[Found],
     points: NDArray[np.float64],
-    working: OccupancyMap,
+    clear: ClearFree,
     index: ReferenceIndex,
     settings: Settings,
     evidence: Contradiction | None = None,
@@ -551,7 +567,7 @@ def _judge(
             [],
         )
     if evidence is None:
-        evidence = contradiction(found, points, working, index, settings.threshold)
+        evidence = contradiction(found, points, clear, index)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     ratios = [evidence.ratio(i) for i in order]
     ratio = evidence.ratio()

@@ -75,11 +75,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._points import point_norms, take_rows
-from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..masking.distance import within
 from ..transform import RigidTransform
-from .evidence import MIN_EXPECTED, FreeSpace, chance_rate, free_space
+from .evidence import MIN_EXPECTED, ClearFree, FreeSpace, chance_rate, free_space
 from .options import Settings
 from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
@@ -120,7 +119,7 @@ def settle(
     settings: Settings,
     rivals: Sequence[RigidTransform] = (),
     refits: bool = True,
-    working: OccupancyMap | None = None,
+    clear: ClearFree | None = None,
     owned: FreeSpace | None = None,
 ) -> list[Found]:
     """Refit each partition's transform on tiles of its cells; keep what explains more, and
@@ -143,11 +142,12 @@ def settle(
     refits : bool, optional
         Refit the transforms on tiles and shifts (steps 2 and 4); ``False`` offers only the
         ``rivals``, to partitions already settled (whose refits added nothing).
-    working : OccupancyMap, optional
-        The map (at the working resolution, as ``points``): a rival that explains more
-        cells, though not more than chance could, is taken when the partition's free space
-        then crosses the reference's walls significantly less often (step 3). Without it,
-        only the count of agreeing cells judges a rival.
+    clear : ClearFree, optional
+        The map's clear free cells (:func:`~brokenness.measure.evidence.clear_free`, at the
+        working resolution, as ``points``): a rival that explains more cells, though not
+        more than chance could, is taken when the partition's free space then crosses the
+        reference's walls significantly less often (step 3). Without them, only the count
+        of agreeing cells judges a rival.
     owned : FreeSpace, optional
         :func:`~brokenness.measure.evidence.free_space` of ``found``, if already made (made
         here when a rival needs it).
@@ -184,9 +184,7 @@ def settle(
     offered = np.stack(rows)
     seeds_arr = np.asarray(seeds)
     p0 = index.chance_agreement(threshold)
-    free = (
-        None if working is None else _FreeSpaceTest(found, points, working, index, settings, owned)
-    )
+    free = None if clear is None else _FreeSpaceTest(found, points, clear, index, settings, owned)
     added: list[Found] = []
     alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
@@ -258,7 +256,7 @@ def settle(
     added = [a for a, kept in zip(added, alive[len(found) :], strict=True) if kept]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
-        return settle(settled, points, index, settings, rivals, refits, working)
+        return settle(settled, points, index, settings, rivals, refits, clear)
     return settled
 
 
@@ -335,12 +333,12 @@ class _FreeSpaceTest:
         self,
         found: list[Found],
         points: NDArray[np.float64],
-        working: OccupancyMap,
+        clear: ClearFree,
         index: ReferenceIndex,
         settings: Settings,
         owned: FreeSpace | None = None,
     ) -> None:
-        self._args = (found, points, working, settings.threshold)
+        self._args = (found, points, clear)
         self._index = index
         self._z = settings.significance
         self._chance = chance_rate(index)
