@@ -21,8 +21,8 @@ from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
 from brokenness.measure.evidence import (
     MAP_RATIO,
+    ClearFree,
     Contradiction,
-    clear_free,
     contradiction,
     free_space,
 )
@@ -67,7 +67,7 @@ def case():
 
 def test_free_space_counts_are_those_of_the_contradiction(case) -> None:
     broken, points, _, found, truth, index = case
-    clear = clear_free(broken, SETTINGS.threshold)
+    clear = ClearFree(broken, SETTINGS.threshold)
     owned = free_space(found, points, clear)
     whole = contradiction(found, points, clear, index)
     again = contradiction(found, points, clear, index, owned)
@@ -91,7 +91,7 @@ def test_walls_alone_do_not_take_the_rival(case) -> None:
 def test_the_free_space_takes_the_rival(case) -> None:
     broken, points, in_a, found, truth, index = case
     settled = settle(
-        found, points, index, SETTINGS, [truth], clear=clear_free(broken, SETTINGS.threshold)
+        found, points, index, SETTINGS, [truth], clear=ClearFree(broken, SETTINGS.threshold)
     )
     assert len(settled) == 2
     assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
@@ -108,7 +108,7 @@ def test_the_free_space_does_not_move_a_right_placement(case) -> None:
         index,
         SETTINGS,
         [found[1].transform],
-        clear=clear_free(broken, SETTINGS.threshold),
+        clear=ClearFree(broken, SETTINGS.threshold),
     )
     assert median_error(settled[1].transform, truth, points[in_a]) < 0.5
 
@@ -117,7 +117,7 @@ def test_only_a_partition_whose_free_space_fails_is_searched_again(case) -> None
     # the relocation's choice (``Contradiction.doubtful``): A at B's place crosses B's pillar
     broken, points, _, found, truth, index = case
     z = SETTINGS.significance
-    clear = clear_free(broken, SETTINGS.threshold)
+    clear = ClearFree(broken, SETTINGS.threshold)
     wrong = contradiction(found, points, clear, index)
     assert wrong.doubtful(z) == [1]
     assert wrong.upper_ratio(z, 1) > MAP_RATIO >= wrong.upper_ratio(z, 0)

@@ -14,7 +14,7 @@ import brokenness
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.evidence import MAP_RATIO, clear_free, contradiction
+from brokenness.measure.evidence import MAP_RATIO, ClearFree, contradiction
 from brokenness.measure.partitions import Found
 
 DATA = Path(__file__).parent / "data"
@@ -110,7 +110,7 @@ def test_contradiction_is_zero_aligned_and_high_when_misplaced():
     points = cell_points(room.occupied)
     every = np.arange(points.shape[0])
     aligned = contradiction(
-        [Found(RigidTransform(), every, 1.0, 0.0)], points, clear_free(room, 2.0), index
+        [Found(RigidTransform(), every, 1.0, 0.0)], points, ClearFree(room, 2.0), index
     )
     assert aligned.contradicting.sum() == 0 and aligned.counted.sum() > 1000
     assert aligned.ratio() == 0.0
@@ -118,7 +118,7 @@ def test_contradiction_is_zero_aligned_and_high_when_misplaced():
     shifted = contradiction(
         [Found(RigidTransform(0.0, 30.0, 0.0), every, 1.0, 0.0)],
         points,
-        clear_free(room, 2.0),
+        ClearFree(room, 2.0),
         index,
     )
     assert shifted.contradicting.sum() > 100
@@ -145,12 +145,12 @@ def test_the_walls_that_bound_the_free_space_own_it():
     counted as clear)."""
     room, index, points, inner, rest = _room_in_two()
     two = [Found(RigidTransform(), rest, 1.0, 0.0), Found(RigidTransform(), inner, 1.0, 0.0)]
-    split = contradiction(two, points, clear_free(room, 2.0), index)
+    split = contradiction(two, points, ClearFree(room, 2.0), index)
     assert split.counted[0] > 2 * split.counted[1] > 0
     whole = contradiction(
         [Found(RigidTransform(), np.arange(points.shape[0]), 1.0, 0.0)],
         points,
-        clear_free(room, 2.0),
+        ClearFree(room, 2.0),
         index,
     )
     # clear: farther than 2c = 4 cells from every wall, in the 78 x 118 free interior

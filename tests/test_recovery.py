@@ -19,7 +19,7 @@ import brokenness.measure.recovery as recovery
 import brokenness.measure.settle as settle_module
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.masking import ReferenceIndex, cell_points
-from brokenness.measure.evidence import clear_free
+from brokenness.measure.evidence import ClearFree
 from brokenness.measure.partitions import Found, consolidate, reassign
 from brokenness.measure.recovery import agreement_support
 
@@ -199,7 +199,7 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corne
     part = Found(right_t, np.flatnonzero(taken), 1.0, 0.0)
     grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
     assert len(grown) == 2
-    free = clear_free(broken, SETTINGS.threshold)
+    free = ClearFree(broken, SETTINGS.threshold)
     before = recovery.contradiction(found, points, free, index)
     clears = recovery._clears_free_space
     assert clears(before, grown, points, free, index, SETTINGS)

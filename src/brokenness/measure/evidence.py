@@ -20,7 +20,7 @@ This module measures that, once the partitions are known:
 * the *chance rate* ``q`` is the share of the known reference cells that are occupied: the
   contradiction rate of free space dropped at random on the reference.
 
-:func:`clear_free` finds the clear free cells (once a call: they do not depend on the
+:class:`ClearFree` finds the clear free cells (once a call: they do not depend on the
 partitions), :func:`free_space` gives each to its partition, and :func:`contradiction`
 returns, per partition and for the whole map, the contradicting and the counted cells. The
 ratio of the observed rate to ``q`` over the whole map decides whether the map is of the
@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -56,7 +58,6 @@ __all__ = [
     "ClearFree",
     "WallContradiction",
     "chance_rate",
-    "clear_free",
     "contradiction",
     "free_space",
     "wall_contradiction",
@@ -230,7 +231,7 @@ def contradiction(
     points : ndarray, shape (N, 2)
         The map's occupied cells ``(x, y)`` in the working grid, row-major.
     clear : ClearFree
-        The map's clear free cells (:func:`clear_free`, at the working resolution).
+        The map's clear free cells (at the working resolution).
     index : ReferenceIndex
         The reference, at the working resolution.
     owned : FreeSpace, optional
@@ -256,40 +257,75 @@ def contradiction(
     return Contradiction(counted, contradicting, chance_rate(index), owned.stride)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ClearFree:
-    """The map's clear free cells (an even grid of them): free, and farther than ``2 c`` from
-    every map wall.
+    """The clear free cells of a map (an even grid of them): free, and farther than ``2 c``
+    from every map wall.
 
-    What :func:`free_space` needs of the map whatever its partitions: made once a call by
-    :func:`clear_free` (passes over the grid), shared by every contradiction of the call.
+    What :func:`free_space` needs of the map whatever its partitions, for every contradiction
+    of a call. Made on first use, once: the passes over the grid run when a contradiction
+    first needs them (for a map of one partition, only at the end, once the registration's
+    memory is freed).
+
+    Parameters
+    ----------
+    working : OccupancyMap
+        The map at the working resolution.
+    threshold : float
+        Agreement threshold ``c`` (cells).
 
     Attributes
     ----------
-    x, y : ndarray of int32, shape (M,)
-        The clear free cells looked up (columns and rows of the working grid).
     stride : int
-        The clear free cells of every ``stride``-th row and column were taken.
+        The clear free cells of every ``stride``-th row and column are taken.
     box : tuple of int
         ``(row0, row1, col0, col1)`` (half-open): the box of the map's free cells with the
         walls around them (a margin of ``2 c`` and a cell), in which their walls are looked
         for.
     """
 
-    x: NDArray[np.int32]
-    y: NDArray[np.int32]
+    working: OccupancyMap
+    threshold: float
+
+    @cached_property
+    def _cells(self) -> _Cells:
+        return _clear_cells(self.working.states, self.threshold)
+
+    @property
+    def stride(self) -> int:
+        return self._cells.stride
+
+    @property
+    def box(self) -> tuple[int, int, int, int]:
+        return self._cells.box
+
+    def cells(self) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+        """The clear free cells taken, ``(x, y)`` (columns and rows of the working grid,
+        row-major): new arrays on every call (kept as a byte a cell of the strided box)."""
+        mask, stride, (r0, _, c0, _) = self._cells
+        clear = np.flatnonzero(mask)  # flat indices in the strided box
+        x, y = np.empty(clear.size, np.int32), np.empty(clear.size, np.int32)
+        for start in range(0, clear.size, _CHUNK):  # bounded temporaries
+            rows, cols = np.divmod(clear[start : start + _CHUNK], mask.shape[1])
+            x[start : start + rows.size] = cols * stride + c0
+            y[start : start + rows.size] = rows * stride + r0
+        return x, y
+
+
+class _Cells(NamedTuple):
+    """What :class:`ClearFree` keeps: the clear cells of the strided box, and the box."""
+
+    mask: NDArray[np.bool_]
     stride: int
     box: tuple[int, int, int, int]
 
 
-def clear_free(working: OccupancyMap, threshold: float) -> ClearFree:
-    """The clear free cells of ``working`` (see :class:`ClearFree`; ``threshold``: the
-    agreement threshold ``c`` in cells)."""
-    states = working.states
+def _clear_cells(states: NDArray[np.int8], threshold: float) -> _Cells:
+    """:class:`ClearFree`'s cells of the map of ``states``."""
     # the box of the map's free cells: free space outside it does not exist
     free_box = _free_box(states)
     if free_box is None:
-        return ClearFree(np.zeros(0, np.int32), np.zeros(0, np.int32), 1, (0, 0, 0, 0))
+        return _Cells(np.zeros((0, 0), bool), 1, (0, 0, 0, 0))
     # clear free cells: farther than 2c from every map wall (a disc of radius 2c around walls);
     # the box takes the walls around the free cells along (a margin of the disc's radius and
     # a cell: the walls that bound the free space, and that mark free cells as near a wall)
@@ -308,22 +344,16 @@ def clear_free(working: OccupancyMap, threshold: float) -> ClearFree:
     n_clear = int(np.count_nonzero(clear_mask))
     # an even grid of at most about _MAX_FREE of them (every stride-th row and column)
     stride = max(1, math.ceil(math.sqrt(n_clear / _MAX_FREE)))
-    sub_mask = clear_mask[::stride, ::stride]
-    rows, cols = np.nonzero(sub_mask)  # row-major, as the flat indices of the strided grid
-    del clear_mask, sub_mask
-    return ClearFree(
-        (cols * stride + c0).astype(np.int32),
-        (rows * stride + r0).astype(np.int32),
-        stride,
-        (r0, r1, c0, c1),
-    )
+    strided = clear_mask[::stride, ::stride]  # copied when strided: the whole mask is freed
+    return _Cells(strided if stride == 1 else strided.copy(), stride, (r0, r1, c0, c1))
 
 
 def free_space(found: list[Found], points: NDArray[np.float64], clear: ClearFree) -> FreeSpace:
     """The map's clear free cells and the partition of ``found`` that owns each (the one of
     the nearest wall of a partition; arguments as for :func:`contradiction`)."""
     empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), 1)
-    if not found or clear.x.size == 0:
+    x, y = clear.cells()
+    if not found or x.size == 0:
         return empty
     r0, r1, c0, c1 = clear.box
     # the walls that label free space: cells of a partition, not isolated (a speck of noise
@@ -355,10 +385,10 @@ def free_space(found: list[Found], points: NDArray[np.float64], clear: ClearFree
     owners_of_blocks = block_owner[is_block]
     del block_owner, is_block
     # the owners, looked up chunk by chunk (bounded temporaries, whatever the map)
-    out = FreeSpace(clear.x, clear.y, np.empty(clear.x.size, np.int16), clear.stride)
-    for start in range(0, clear.x.size, _CHUNK):
-        rows = clear.y[start : start + _CHUNK].astype(np.intp) - r0
-        cols = clear.x[start : start + _CHUNK].astype(np.intp) - c0
+    out = FreeSpace(x, y, np.empty(x.size, np.int16), clear.stride)
+    for start in range(0, x.size, _CHUNK):
+        rows = y[start : start + _CHUNK].astype(np.intp) - r0
+        cols = x[start : start + _CHUNK].astype(np.intp) - c0
         out.owner[start : start + rows.size] = owners_of_blocks.take(
             cells_at(nearest, rows // 2, cols // 2) - 1
         )

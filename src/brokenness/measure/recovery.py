@@ -79,7 +79,7 @@ from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .evidence import ClearFree, Contradiction, clear_free, contradiction
+from .evidence import ClearFree, Contradiction, contradiction
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
@@ -479,7 +479,7 @@ def recover(
     around : ndarray, optional
         :func:`occupied_around` of ``points`` (computed here if not given).
     clear : ClearFree, optional
-        :func:`~brokenness.measure.evidence.clear_free` of ``working`` (computed here if not
+        :class:`~brokenness.measure.evidence.ClearFree` of ``working`` (computed here if not
         given).
 
     Returns
@@ -499,7 +499,7 @@ def recover(
         around = occupied_around(points, working.shape)
     threshold, min_cells = settings.threshold, settings.min_cells
     if clear is None:
-        clear = clear_free(working, threshold)
+        clear = ClearFree(working, threshold)
     search = _Search.of(points, working, index, registrar, reference, settings, around)
     found = reassign(found, points, index, threshold, min_cells)
     rivals: list[RigidTransform] = []

@@ -133,7 +133,6 @@ from .evidence import (
     MAP_RATIO,
     ClearFree,
     Contradiction,
-    clear_free,
     contradiction,
     free_space,
     wall_contradiction,
@@ -317,8 +316,9 @@ def _compute(
     # Algorithm 1, then the tests of what it found, in this order
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
     # of the map alone, once a call: the occupied cells around each, the clear free cells
+    # (these made when first needed)
     around = occupied_around(points, working.shape)
-    clear = clear_free(working, settings.threshold)
+    clear = ClearFree(working, settings.threshold)
     found, rivals = recover(
         found, points, working, index, thorough, whole, settings, True, around, clear
     )
@@ -400,7 +400,7 @@ def _tested(
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
     and, if settling changed anything, drop again (``around``: the occupied cells around
     each, :func:`~brokenness.measure.recovery.occupied_around`; ``clear``: the map's clear
-    free cells, :func:`~brokenness.measure.evidence.clear_free`)."""
+    free cells, :class:`~brokenness.measure.evidence.ClearFree`)."""
     found = _real(
         consolidate(found, points, index, settings), points, working, index, settings, around
     )

@@ -143,7 +143,7 @@ def settle(
         Refit the transforms on tiles and shifts (steps 2 and 4); ``False`` offers only the
         ``rivals``, to partitions already settled (whose refits added nothing).
     clear : ClearFree, optional
-        The map's clear free cells (:func:`~brokenness.measure.evidence.clear_free`, at the
+        The map's clear free cells (:class:`~brokenness.measure.evidence.ClearFree`, at the
         working resolution, as ``points``): a rival that explains more cells, though not
         more than chance could, is taken when the partition's free space then crosses the
         reference's walls significantly less often (step 3). Without them, only the count
