@@ -113,7 +113,7 @@ import math
 import os
 import time
 import warnings
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -319,21 +319,20 @@ def _compute(
     # (these made when first needed)
     around = occupied_around(points, working.shape)
     clear = ClearFree(working, settings.threshold)
+    call = _Call(points, working, index, settings, around, clear)
     found, rivals = recover(
         found, points, working, index, thorough, whole, settings, True, around, clear
     )
-    found = _tested(found, points, working, index, settings, rivals, around, clear)
+    found = _tested(found, call, rivals)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
         again, rivals = recover(
             found, points, working, index, thorough, whole, settings, False, around, clear
         )
         if len(again) <= len(found):
             break
-        found = _tested(again, points, working, index, settings, rivals, around, clear)
-    found, evidence = _relocated(
-        found, points, working, index, thorough, whole, settings, around, clear
-    )
-    del whole, around  # the prepared reference (its distance map): no registration from here on
+        found = _tested(again, call, rivals)
+    found, evidence = _relocated(found, call, thorough, whole)
+    del whole, around, call  # the prepared reference (its distance map): no registration now
     reason, map_ratio, map_bound, ratios = _judge(found, points, clear, index, settings, evidence)
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
@@ -386,80 +385,59 @@ def _compute(
     )
 
 
-def _tested(
-    found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
-    settings: Settings,
-    rivals: list[RigidTransform],
-    around: NDArray[np.float64],
-    clear: ClearFree,
-) -> list[Found]:
+@dataclass(frozen=True, eq=False)
+class _Call:
+    """What the tests after the recursion read, fixed for a call: the map's occupied cells
+    (``points``, in the grid of ``working``), the map, the reference, the settings, the
+    occupied cells around each cell (:func:`~brokenness.measure.recovery.occupied_around`)
+    and the map's clear free cells (:class:`~brokenness.measure.evidence.ClearFree`)."""
+
+    points: NDArray[np.float64]
+    working: OccupancyMap
+    index: ReferenceIndex
+    settings: Settings
+    around: NDArray[np.float64]
+    clear: ClearFree
+
+
+def _tested(found: list[Found], call: _Call, rivals: list[RigidTransform]) -> list[Found]:
     """The tests of what the recursion and the recovery found, in order: join one-piece
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
-    and, if settling changed anything, drop again (``around``: the occupied cells around
-    each, :func:`~brokenness.measure.recovery.occupied_around`; ``clear``: the map's clear
-    free cells, :class:`~brokenness.measure.evidence.ClearFree`)."""
-    found = _real(
-        consolidate(found, points, index, settings), points, working, index, settings, around
-    )
-    return _settled(found, points, working, index, settings, rivals, around, clear)
+    and, if settling changed anything, drop again."""
+    found = _real(consolidate(found, call.points, call.index, call.settings), call)
+    return _settled(found, call, rivals)
 
 
-def _settled(
-    found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
-    settings: Settings,
-    rivals: list[RigidTransform],
-    around: NDArray[np.float64],
-    clear: ClearFree,
-) -> list[Found]:
+def _settled(found: list[Found], call: _Call, rivals: list[RigidTransform]) -> list[Found]:
     """Settle the transforms (offering ``rivals``) and, if that changed anything, drop the
     partitions that are no longer real (the last tests of :func:`_tested`)."""
-    settled = settle(found, points, index, settings, rivals, clear=clear)
+    settled = settle(found, call.points, call.index, call.settings, rivals, clear=call.clear)
     if settled is found:
         return found
     # the tests again: settling moves transforms, it adds nothing
-    return _real(settled, points, working, index, settings, around)
+    return _real(settled, call)
 
 
-def _real(
-    found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
-    settings: Settings,
-    around: NDArray[np.float64],
-) -> list[Found]:
+def _real(found: list[Found], call: _Call) -> list[Found]:
     """The partitions that are real (step 7 of the README): coherent
     (:func:`~brokenness.measure.recovery.drop_incoherent`), and not a redundant placement
     (:func:`~brokenness.measure.partitions.drop_redundant`)."""
-    found = drop_incoherent(found, points, index, settings, working.shape, around)
+    points, index, settings = call.points, call.index, call.settings
+    found = drop_incoherent(found, points, index, settings, call.working.shape, call.around)
     return drop_redundant(found, points, index, settings)
 
 
 def _relocated(
-    found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
-    registrar: Registrar,
-    whole: Any,
-    settings: Settings,
-    around: NDArray[np.float64],
-    clear: ClearFree,
+    found: list[Found], call: _Call, registrar: Registrar, whole: Any
 ) -> tuple[list[Found], Contradiction | None]:
     """The settled partitions, each that may be at a wrong place offered the best places that
     its own cells and its neighbourhood give registered alone
     (:func:`~brokenness.measure.recovery.relocation_rivals`, with the wider search
-    ``registrar``): a small part held at a twin of its room holds mostly its own cells once
-    the transforms are settled, and registered alone they, or the cells around them, give
-    its true place. The rivals are offered alone first (the partitions' refits were tried),
-    then with the refits of whatever moved, and the tests of :func:`_tested` run again if
-    anything did.
+    ``registrar``, ``whole`` its prepared reference): a small part held at a twin of its room
+    holds mostly its own cells once the transforms are settled, and registered alone they,
+    or the cells around them, give its true place. The rivals are offered alone first (the
+    partitions' refits were tried), then with the refits of whatever moved, and the tests of
+    :func:`_real` run again if anything did.
 
     A partition *may be at a wrong place* when its free space, on its own, would not pass the
     map's test (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`): the upper bound
@@ -475,11 +453,12 @@ def _relocated(
     """
     if len(found) < 2:
         return found, None  # a lone partition's cells are what the first step registered
+    points, index, settings, clear = call.points, call.index, call.settings, call.clear
     owned = free_space(found, points, clear)
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(
-        found, points, working, index, registrar, whole, settings, around, which
+        found, points, call.working, index, registrar, whole, settings, call.around, which
     )
     if not rivals:
         return found, evidence
@@ -487,7 +466,7 @@ def _relocated(
     if moved is found:
         return found, evidence
     moved = settle(moved, points, index, settings, rivals, clear=clear)
-    return _real(moved, points, working, index, settings, around), None
+    return _real(moved, call), None
 
 
 def _wider(registrar: Registrar) -> Registrar:
