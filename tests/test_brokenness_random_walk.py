@@ -115,9 +115,9 @@ def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
     seen = []
     real = recursion.recover
 
-    def spy(found, points, working, index, registrar, reference, settings, *more):
+    def spy(found, context, registrar, reference, **more):
         seen.append(registrar)
-        return real(found, points, working, index, registrar, reference, settings, *more)
+        return real(found, context, registrar, reference, **more)
 
     monkeypatch.setattr(recursion, "recover", spy)
     broken, _ = _case(depot, 1)

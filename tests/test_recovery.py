@@ -19,6 +19,7 @@ import brokenness.measure.recovery as recovery
 import brokenness.measure.settle as settle_module
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.context import MapContext
 from brokenness.measure.evidence import ClearFree
 from brokenness.measure.partitions import Found, consolidate, reassign
 from brokenness.measure.recovery import agreement_support
@@ -200,10 +201,11 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corne
     grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
     assert len(grown) == 2
     free = ClearFree(broken, SETTINGS.threshold)
+    context = MapContext(points, broken, index, SETTINGS, around, free)
     before = recovery.contradiction(found, points, free, index)
     clears = recovery._clears_free_space
-    assert clears(before, grown, points, free, index, SETTINGS)
+    assert clears(before, grown, context)
     centre = points[taken].mean(axis=0)
     turned = RigidTransform(np.pi / 2).compose(RigidTransform(0.0, *(-centre))).compose(right_t)
     wrong = [*found, Found(RigidTransform(0.0, *centre).compose(turned), part.members, 1.0, 0.0)]
-    assert not clears(before, wrong, points, free, index, SETTINGS)
+    assert not clears(before, wrong, context)

@@ -75,11 +75,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._points import point_norms, take_rows
-from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
-from .evidence import ClearFree, Contradiction, contradiction
+from .context import MapContext
+from .evidence import Contradiction, contradiction
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
@@ -165,14 +165,7 @@ def occupied_around(
     return _window_counts(rows, cols, everything, everything, shape, radius)
 
 
-def drop_incoherent(
-    found: list[Found],
-    points: NDArray[np.float64],
-    index: ReferenceIndex,
-    settings: Settings,
-    shape: tuple[int, int],
-    around: NDArray[np.float64] | None = None,
-) -> list[Found]:
+def drop_incoherent(found: list[Found], context: MapContext) -> list[Found]:
     """The partitions that are coherent regions of the map, cells reassigned.
 
     A partition must hold at least ``settings.min_cells`` cells with a support of at least
@@ -181,13 +174,11 @@ def drop_incoherent(
     happens to put on reference walls (common where walls are long and straight) has little
     support; it is not a part of the map that is "off", and its cells go to the partitions
     that align them best. The least coherent partition is dropped first, one at a time.
-    ``around``: :func:`occupied_around` of ``points``, if already at hand.
     """
-    threshold, min_cells = settings.threshold, settings.min_cells
-    if around is None:
-        around = occupied_around(points, shape)
+    points, index, around = context.points, context.index, context.around
+    threshold, min_cells = context.settings.threshold, context.settings.min_cells
     while len(found) > 1:
-        support = _support(found, points, index, threshold, shape, SUPPORT_RADIUS, around)
+        support = _support(found, points, index, threshold, context.shape, SUPPORT_RADIUS, around)
         coherent = [int(np.count_nonzero(support[f.members] >= SUPPORT_SHARE)) for f in found]
         worst = min(range(len(found)), key=lambda j: (coherent[j], j))
         if coherent[worst] >= min_cells:
@@ -441,15 +432,10 @@ def _new_ones(
 
 def recover(
     found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
+    context: MapContext,
     registrar: Registrar,
     reference: Any,
-    settings: Settings,
     relocate: bool = False,
-    around: NDArray[np.float64] | None = None,
-    clear: ClearFree | None = None,
 ) -> tuple[list[Found], list[RigidTransform]]:
     """The partitions of the recursion, reassigned, plus those found again among suspects.
 
@@ -458,29 +444,19 @@ def recover(
     Parameters
     ----------
     found : list of Found
-        The recursion's partitions (members index ``points``).
-    points : ndarray, shape (N, 2)
-        The map's occupied cells, ``(x, y)``.
-    working : OccupancyMap
-        The map at the working resolution (that of ``index``'s reference).
-    index : ReferenceIndex
-        The reference.
+        The recursion's partitions (members index ``context.points``).
+    context : MapContext
+        The map and the reference (:class:`~brokenness.measure.context.MapContext`); each
+        round asks for twice its settings' ``max_candidates`` hypotheses.
     registrar : Registrar
         The registration (the recursion's wider search), and ``reference`` its prepared whole
         reference.
-    settings : Settings
-        As for the recursion; each round asks for twice its ``max_candidates`` hypotheses.
     relocate : bool, optional
         Also register the own cells of each partition whose free space does not show that
         it is in place (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`) alone,
         once the new partitions are found, and return the best hypothesis that puts them
         elsewhere than every partition does as a rival (a part at a twin of its room: its
         own cells give its true place among their hypotheses).
-    around : ndarray, optional
-        :func:`occupied_around` of ``points`` (computed here if not given).
-    clear : ClearFree, optional
-        :class:`~brokenness.measure.evidence.ClearFree` of ``working`` (computed here if not
-        given).
 
     Returns
     -------
@@ -494,18 +470,20 @@ def recover(
         unexplained, and its true transform is found from them; :func:`~brokenness.measure.
         settle.settle` offers these to every partition as replacements.
     """
+    points, index, settings, around = (
+        context.points,
+        context.index,
+        context.settings,
+        context.around,
+    )
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    if around is None:
-        around = occupied_around(points, working.shape)
     threshold, min_cells = settings.threshold, settings.min_cells
-    if clear is None:
-        clear = ClearFree(working, threshold)
-    search = _Search.of(points, working, index, registrar, reference, settings, around)
+    search = _Search.of(context, registrar, reference)
     found = reassign(found, points, index, threshold, min_cells)
     rivals: list[RigidTransform] = []
     while found and len(found) < settings.max_partitions and not exhausted(registrar):
         t0 = time.perf_counter()
-        support = _support(found, points, index, threshold, working.shape, SUPPORT_RADIUS, around)
+        support = _support(found, points, index, threshold, context.shape, SUPPORT_RADIUS, around)
         suspect = support < SUPPORT_SHARE
         if np.count_nonzero(suspect) < min_cells:
             break
@@ -513,7 +491,7 @@ def recover(
         # of the partitions found are lines of them), then every suspect
         dense = suspect.copy()
         dense[suspect] = (
-            _window_counts(rows, cols, suspect, suspect, working.shape, SUPPORT_RADIUS)
+            _window_counts(rows, cols, suspect, suspect, context.shape, SUPPORT_RADIUS)
             >= DENSE_SHARE * around[suspect]
         )
         tries = [dense]
@@ -537,8 +515,8 @@ def recover(
             if len(grown) <= len(found):
                 continue
             if before is None:
-                before = contradiction(found, points, clear, index)
-            if _clears_free_space(before, grown, points, clear, index, settings):
+                before = contradiction(found, points, context.clear, index)
+            if _clears_free_space(before, grown, context):
                 new = taken
                 break
         if new is None:
@@ -550,26 +528,23 @@ def recover(
             break  # it kept too few cells once every cell went to its best partition
         found = grown
     if relocate and len(found) > 1:
-        doubtful = contradiction(found, points, clear, index).doubtful(settings.significance)
+        evidence = contradiction(found, points, context.clear, index)
+        doubtful = evidence.doubtful(settings.significance)
         rivals += _relocations(search, found, None, doubtful)
     return found, rivals
 
 
 def relocation_rivals(
     found: list[Found],
-    points: NDArray[np.float64],
-    working: OccupancyMap,
-    index: ReferenceIndex,
+    context: MapContext,
     registrar: Registrar,
     reference: Any,
-    settings: Settings,
-    around: NDArray[np.float64],
     which: Sequence[int] | None = None,
 ) -> list[RigidTransform]:
     """Each partition's own cells, and its neighbourhood, registered alone: of each, the best
     hypothesis that puts them elsewhere than every partition's transform does (the rivals of
-    ``recover``'s ``relocate``, for partitions already settled; arguments as for
-    :func:`recover`).
+    ``recover``'s ``relocate``, for partitions already settled, or for those ``which``
+    gives; the other arguments as for :func:`recover`).
 
     A part placed at a wrong place that fits its cells (the 180-degree twin of its stretch of
     corridor, a room like its own) holds, after the settle step, mostly its own cells, and
@@ -581,7 +556,7 @@ def relocation_rivals(
     of its cells. :func:`~brokenness.measure.settle.settle` then judges every rival by the
     usual count, and by the free space.
     """
-    search = _Search.of(points, working, index, registrar, reference, settings, around)
+    search = _Search.of(context, registrar, reference)
     return _relocations(search, found, NEIGHBOURHOOD_RADIUS, which)
 
 
@@ -613,23 +588,16 @@ def _relocations(
 
 def _neighbourhood(members: NDArray[np.intp], search: _Search, radius: int) -> NDArray[np.intp]:
     """The map's occupied cells within ``radius`` cells (a square window) of ``members``."""
-    pts = search.points
+    pts = search.context.points
     rows, cols = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
     mine = np.zeros(pts.shape[0], dtype=bool)
     mine[members] = True
     everything = np.ones(pts.shape[0], dtype=bool)
-    near = _window_counts(rows, cols, mine, everything, search.working.shape, radius)
+    near = _window_counts(rows, cols, mine, everything, search.context.shape, radius)
     return np.flatnonzero(near > 0)
 
 
-def _clears_free_space(
-    before: Contradiction,
-    grown: list[Found],
-    points: NDArray[np.float64],
-    clear: ClearFree,
-    index: ReferenceIndex,
-    settings: Settings,
-) -> bool:
+def _clears_free_space(before: Contradiction, grown: list[Found], context: MapContext) -> bool:
     """Whether the partitions ``grown`` (those found and, last, a partition taken over the
     whole map) make the map's free space cross the reference's walls significantly less
     often than those found did (``before``, their
@@ -645,10 +613,10 @@ def _clears_free_space(
     must exceed ``z`` standard deviations of the difference of those two Poisson counts,
     ``z sqrt(fall + 2 x_new)``.
     """
-    after = contradiction(grown, points, clear, index)
+    after = contradiction(grown, context.points, context.clear, context.index)
     fall = int(before.contradicting.sum()) - int(after.contradicting.sum())
     x_new = int(after.contradicting[-1])
-    return fall > 0 and fall > settings.significance * math.sqrt(fall + 2 * x_new)
+    return fall > 0 and fall > context.settings.significance * math.sqrt(fall + 2 * x_new)
 
 
 @dataclass(frozen=True)
@@ -665,29 +633,28 @@ class _Search:
     """What a search for a lost partition among suspect cells needs (fixed for a map):
     one registration of the suspects, and the tests its best hypothesis must pass."""
 
-    points: NDArray[np.float64]
-    working: OccupancyMap
-    index: ReferenceIndex
+    context: MapContext
     registrar: Registrar
     reference: Any
-    around: NDArray[np.float64]  # occupied cells in the window around each cell
     p0: float  # chance agreement of a random placement (bounds the rivals' chance)
-    settings: Settings
 
     @classmethod
-    def of(
-        cls,
-        points: NDArray[np.float64],
-        working: OccupancyMap,
-        index: ReferenceIndex,
-        registrar: Registrar,
-        reference: Any,
-        settings: Settings,
-        around: NDArray[np.float64],
-    ) -> _Search:
+    def of(cls, context: MapContext, registrar: Registrar, reference: Any) -> _Search:
         """The search for a map (arguments as for :func:`recover`)."""
-        p0 = index.chance_agreement(settings.threshold)
-        return cls(points, working, index, registrar, reference, around, p0, settings)
+        p0 = context.index.chance_agreement(context.settings.threshold)
+        return cls(context, registrar, reference, p0)
+
+    @property
+    def points(self) -> NDArray[np.float64]:
+        return self.context.points
+
+    @property
+    def index(self) -> ReferenceIndex:
+        return self.context.index
+
+    @property
+    def settings(self) -> Settings:
+        return self.context.settings
 
     def lost_partition(
         self, found: list[Found], cells: NDArray[np.bool_]
@@ -764,18 +731,15 @@ class _Search:
         loose = settings.loose
         owner = owners(found, pts.shape[0])
         owner_count = _owner_counts(found, owner, pts, index, settings.threshold)
-        taken = taken_cells(
-            transform, owner, owner_count, pts, index, settings.threshold, self.around
-        )
+        around = self.context.around
+        taken = taken_cells(transform, owner, owner_count, pts, index, settings.threshold, around)
         k = int(np.count_nonzero(taken))
         if k < settings.min_cells:
             return None
         n = pts.shape[0]
         shares = [
             np.count_nonzero(
-                taken_cells(
-                    c.transform, owner, owner_count, pts, index, settings.threshold, self.around
-                )
+                taken_cells(c.transform, owner, owner_count, pts, index, settings.threshold, around)
             )
             / n
             for c, _ in rivals(candidates, pts[:: max(1, n // 200)], transform, loose)
@@ -812,7 +776,7 @@ class _Search:
         a partition already found; none if too few of them are left to register."""
         settings, pts = self.settings, self.points
         states = moving_remainder(
-            self.working,
+            self.context.working,
             pts[:, 1].astype(np.intp),
             pts[:, 0].astype(np.intp),
             cells,
@@ -838,9 +802,9 @@ class _Search:
             cells,
             self.index,
             self.settings.threshold,
-            self.working.shape,
+            self.context.shape,
             SUPPORT_RADIUS,
-            self.around,
+            self.context.around,
         )
         # the cells' own agreement, as the share's lookup found it (each cell's lookup is
         # its own: the same as looking the cells up alone)

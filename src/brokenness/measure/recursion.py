@@ -113,7 +113,7 @@ import math
 import os
 import time
 import warnings
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
@@ -129,6 +129,7 @@ from ..registration.base import Candidate, Registrar
 from ..registration.methods import make_registrar
 from ..transform import RigidTransform
 from .choice import mostly_on_claimed, prefer_unexplained
+from .context import MapContext
 from .evidence import (
     MAP_RATIO,
     ClearFree,
@@ -317,23 +318,24 @@ def _compute(
     found = _recurse(working, points, index, registrar, thorough, whole, settings)
     # of the map alone, once a call: the occupied cells around each, the clear free cells
     # (these made when first needed)
-    around = occupied_around(points, working.shape)
-    clear = ClearFree(working, settings.threshold)
-    call = _Call(points, working, index, settings, around, clear)
-    found, rivals = recover(
-        found, points, working, index, thorough, whole, settings, True, around, clear
+    context = MapContext(
+        points,
+        working,
+        index,
+        settings,
+        occupied_around(points, working.shape),
+        ClearFree(working, settings.threshold),
     )
-    found = _tested(found, call, rivals)
+    found, rivals = recover(found, context, thorough, whole, relocate=True)
+    found = _tested(found, context, rivals)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
-        again, rivals = recover(
-            found, points, working, index, thorough, whole, settings, False, around, clear
-        )
+        again, rivals = recover(found, context, thorough, whole)
         if len(again) <= len(found):
             break
-        found = _tested(again, call, rivals)
-    found, evidence = _relocated(found, call, thorough, whole)
-    del whole, around, call  # the prepared reference (its distance map): no registration now
-    reason, map_ratio, map_bound, ratios = _judge(found, points, clear, index, settings, evidence)
+        found = _tested(again, context, rivals)
+    found, evidence = _relocated(found, context, thorough, whole)
+    del whole  # the prepared reference (its distance map): no registration now
+    reason, map_ratio, map_bound, ratios = _judge(found, context, evidence)
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
     )
@@ -385,50 +387,35 @@ def _compute(
     )
 
 
-@dataclass(frozen=True, eq=False)
-class _Call:
-    """What the tests after the recursion read, fixed for a call: the map's occupied cells
-    (``points``, in the grid of ``working``), the map, the reference, the settings, the
-    occupied cells around each cell (:func:`~brokenness.measure.recovery.occupied_around`)
-    and the map's clear free cells (:class:`~brokenness.measure.evidence.ClearFree`)."""
-
-    points: NDArray[np.float64]
-    working: OccupancyMap
-    index: ReferenceIndex
-    settings: Settings
-    around: NDArray[np.float64]
-    clear: ClearFree
-
-
-def _tested(found: list[Found], call: _Call, rivals: list[RigidTransform]) -> list[Found]:
+def _tested(found: list[Found], context: MapContext, rivals: list[RigidTransform]) -> list[Found]:
     """The tests of what the recursion and the recovery found, in order: join one-piece
     partitions, drop those that are not real, settle the transforms (offering ``rivals``),
     and, if settling changed anything, drop again."""
-    found = _real(consolidate(found, call.points, call.index, call.settings), call)
-    return _settled(found, call, rivals)
+    joined = consolidate(found, context.points, context.index, context.settings)
+    return _settled(_real(joined, context), context, rivals)
 
 
-def _settled(found: list[Found], call: _Call, rivals: list[RigidTransform]) -> list[Found]:
+def _settled(found: list[Found], context: MapContext, rivals: list[RigidTransform]) -> list[Found]:
     """Settle the transforms (offering ``rivals``) and, if that changed anything, drop the
     partitions that are no longer real (the last tests of :func:`_tested`)."""
-    settled = settle(found, call.points, call.index, call.settings, rivals, clear=call.clear)
+    points, index, settings = context.points, context.index, context.settings
+    settled = settle(found, points, index, settings, rivals, clear=context.clear)
     if settled is found:
         return found
     # the tests again: settling moves transforms, it adds nothing
-    return _real(settled, call)
+    return _real(settled, context)
 
 
-def _real(found: list[Found], call: _Call) -> list[Found]:
+def _real(found: list[Found], context: MapContext) -> list[Found]:
     """The partitions that are real (step 7 of the README): coherent
     (:func:`~brokenness.measure.recovery.drop_incoherent`), and not a redundant placement
     (:func:`~brokenness.measure.partitions.drop_redundant`)."""
-    points, index, settings = call.points, call.index, call.settings
-    found = drop_incoherent(found, points, index, settings, call.working.shape, call.around)
-    return drop_redundant(found, points, index, settings)
+    found = drop_incoherent(found, context)
+    return drop_redundant(found, context.points, context.index, context.settings)
 
 
 def _relocated(
-    found: list[Found], call: _Call, registrar: Registrar, whole: Any
+    found: list[Found], context: MapContext, registrar: Registrar, whole: Any
 ) -> tuple[list[Found], Contradiction | None]:
     """The settled partitions, each that may be at a wrong place offered the best places that
     its own cells and its neighbourhood give registered alone
@@ -453,20 +440,18 @@ def _relocated(
     """
     if len(found) < 2:
         return found, None  # a lone partition's cells are what the first step registered
-    points, index, settings, clear = call.points, call.index, call.settings, call.clear
+    points, index, settings, clear = context.points, context.index, context.settings, context.clear
     owned = free_space(found, points, clear)
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
-    rivals = relocation_rivals(
-        found, points, call.working, index, registrar, whole, settings, call.around, which
-    )
+    rivals = relocation_rivals(found, context, registrar, whole, which)
     if not rivals:
         return found, evidence
     moved = settle(found, points, index, settings, rivals, refits=False, clear=clear, owned=owned)
     if moved is found:
         return found, evidence
     moved = settle(moved, points, index, settings, rivals, clear=clear)
-    return _real(moved, call), None
+    return _real(moved, context), None
 
 
 def _wider(registrar: Registrar) -> Registrar:
@@ -519,12 +504,7 @@ def _region_candidates(
 
 
 def _judge(
-    found: list[Found],
-    points: NDArray[np.float64],
-    clear: ClearFree,
-    index: ReferenceIndex,
-    settings: Settings,
-    evidence: Contradiction | None = None,
+    found: list[Found], context: MapContext, evidence: Contradiction | None = None
 ) -> tuple[str | None, float | None, float | None, list[float | None]]:
     """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`; their
     :func:`~brokenness.measure.evidence.contradiction` made here unless given).
@@ -546,10 +526,11 @@ def _judge(
             [],
         )
     if evidence is None:
-        evidence = contradiction(found, points, clear, index)
+        evidence = contradiction(found, context.points, context.clear, context.index)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
     ratios = [evidence.ratio(i) for i in order]
     ratio = evidence.ratio()
+    settings = context.settings
     upper = evidence.upper_ratio(settings.significance)
     reason: str | None = None
     if not math.isfinite(upper):
@@ -566,7 +547,7 @@ def _judge(
             "not the same place?"
         )
     if reason is None:
-        walls = wall_contradiction(found, points, index, settings.threshold)
+        walls = wall_contradiction(found, context.points, context.index, settings.threshold)
         wall_upper = walls.upper_ratio(settings.significance)
         if wall_upper > MAP_RATIO:
             wall_ratio = walls.ratio()

@@ -1,0 +1,59 @@
+"""What the stages after Algorithm 1 read of a call: the map and the reference, fixed.
+
+The recursion (:mod:`brokenness.measure.recursion`) finds partitions; the stages after it
+(the recovery, the tests of what is real, the settle step, the relocation and the judge)
+read the same things of the map and the reference on every pass: the map's occupied cells,
+the map and the reference at the working resolution, the per-map settings, and two
+quantities of the map alone, made once a call. :class:`MapContext` holds them, so that each
+stage takes one argument for them instead of the same six passed by hand.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..grid import OccupancyMap
+from ..masking import ReferenceIndex
+from .evidence import ClearFree
+from .options import Settings
+
+__all__ = ["MapContext"]
+
+
+@dataclass(frozen=True, eq=False)
+class MapContext:
+    """The map and the reference of a call, as the stages after the recursion read them.
+
+    Attributes
+    ----------
+    points : ndarray, shape (N, 2)
+        The map's occupied cells ``(x, y)`` in the working grid, row-major (the members of
+        every partition index them).
+    working : OccupancyMap
+        The map at the working resolution (that of ``index``'s reference).
+    index : ReferenceIndex
+        The reference at the working resolution.
+    settings : Settings
+        The per-map settings.
+    around : ndarray, shape (N,)
+        Per occupied cell, the occupied cells in the square window around it
+        (:func:`~brokenness.measure.recovery.occupied_around`).
+    clear : ClearFree
+        The map's clear free cells (:class:`~brokenness.measure.evidence.ClearFree`, made
+        when a contradiction first needs them).
+    """
+
+    points: NDArray[np.float64]
+    working: OccupancyMap
+    index: ReferenceIndex
+    settings: Settings
+    around: NDArray[np.float64]
+    clear: ClearFree
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` of the working grid."""
+        return self.working.shape
