@@ -4,8 +4,14 @@ The recursion (:mod:`brokenness.measure.recursion`) finds partitions; the stages
 (the recovery, the tests of what is real, the settle step, the relocation and the judge)
 read the same things of the map and the reference on every pass: the map's occupied cells,
 the map and the reference at the working resolution, the per-map settings, and two
-quantities of the map alone, made once a call. :class:`MapContext` holds them, so that each
-stage takes one argument for them instead of the same six passed by hand.
+quantities of the map alone, made once a call. :class:`MapContext` holds them: the
+recovery (:func:`~brokenness.measure.recovery.recover`,
+:func:`~brokenness.measure.recovery.relocation_rivals`,
+:func:`~brokenness.measure.recovery.drop_incoherent`) and the recursion module's stages
+take it instead of the same six arguments passed by hand. The lower-level steps that need
+only some of them (:func:`~brokenness.measure.settle.settle`, the joins of
+:mod:`~brokenness.measure.partitions`) take those, so that they can be used, and tested,
+on their own.
 """
 
 from __future__ import annotations

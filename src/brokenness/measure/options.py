@@ -45,8 +45,8 @@ class BrokennessOptions:
     max_candidates : int
         Registration hypotheses examined per step (default 12; the recovery's searches
         among suspect cells ask for twice as many). A search budget, not a test: the tests
-        a hypothesis must pass do not depend on it. See the README (Thresholds) for how
-        it was chosen.
+        a hypothesis must pass do not depend on it. See the README ("The search breadth",
+        under "How it is computed") for how it was chosen.
     seed : int or None
         Seed of the random-walk registration (iFMI uses no randomness).
     registration_options : mapping

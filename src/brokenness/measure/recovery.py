@@ -49,10 +49,12 @@ A best hypothesis that fails only the count of step 4 is returned as a *rival*: 
 partition sits at a wrong place that fits its own cells (a twin of its room), the cells of
 its part that the wrong place leaves are suspects, too few for a new partition, and their
 hypothesis is the part's true transform; :func:`~brokenness.measure.settle.settle` offers it
-to every partition as a replacement. In the first round (``relocate``) each partition's own
-cells are also registered alone, and the best hypothesis that puts them elsewhere than every
-partition does is a rival too: registered alone, a part's cells give their true place among
-their hypotheses, though the place it was found at fits them too. After the settle step,
+to every partition as a replacement. In the first round (``relocate``) the own cells of each
+partition whose free space does not show that it is in place
+(:meth:`~brokenness.measure.evidence.Contradiction.doubtful`) are also registered alone, and
+the best hypothesis that puts them elsewhere than every partition does is a rival too:
+registered alone, a part's cells give their true place among their hypotheses, though the
+place it was found at fits them too. After the settle step,
 the recovery runs again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
 settled transforms leave clearer suspects.
 
@@ -159,7 +161,7 @@ def occupied_around(
     points: NDArray[np.float64], shape: tuple[int, int], radius: int = SUPPORT_RADIUS
 ) -> NDArray[np.float64]:
     """Per occupied cell, the occupied cells in the square window around it (a quantity of
-    the map alone: :func:`recover` and :func:`drop_incoherent` take it computed once)."""
+    the map alone, computed once a call: :attr:`~brokenness.measure.context.MapContext.around`)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     everything = np.ones(points.shape[0], dtype=bool)
     return _window_counts(rows, cols, everything, everything, shape, radius)
@@ -168,7 +170,7 @@ def occupied_around(
 def drop_incoherent(found: list[Found], context: MapContext) -> list[Found]:
     """The partitions that are coherent regions of the map, cells reassigned.
 
-    A partition must hold at least ``settings.min_cells`` cells with a support of at least
+    A partition must hold at least ``context.settings.min_cells`` cells with a support of at least
     :data:`SUPPORT_SHARE` (:func:`agreement_support`): the test a partition found by the
     recovery passes, applied to every partition. A set of scattered cells that one transform
     happens to put on reference walls (common where walls are long and straight) has little
@@ -713,8 +715,9 @@ class _Search:
         return Found(transform, members, (k - chance) / k, 0.0), None
 
     def taken_partition(self, found: list[Found], shortfall: _Shortfall) -> Found | None:
-        """The partition of the cells ``transform`` would *take* (:func:`taken_cells`), if
-        they pass the stopping rule against what the other hypotheses would take.
+        """The partition of the cells the shortfall's transform would *take*
+        (:func:`taken_cells`), if they pass the stopping rule against what the other
+        hypotheses of the shortfall would take.
 
         A part shifted along a corridor against a partition already found (a pure-shift
         bump) shares its walls parallel to the shift with that partition: they agree under

@@ -249,7 +249,8 @@ def compute_brokenness(
     The call runs with numpy's transparent huge-page advice turned off, and restores it on
     return (:func:`brokenness._memory.small_pages`): on kernels that compact memory to find
     huge pages, fresh grids of large maps cost seconds of system time otherwise. Results do
-    not depend on it. No thread count is set (see the README, "Scaling").
+    not depend on it. No thread count is set here (a batch's workers run on one thread
+    each: see the README, "Evaluate many maps").
 
     References
     ----------

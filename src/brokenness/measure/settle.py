@@ -35,8 +35,9 @@ mostly holds one. So :func:`settle`:
    that makes more cells of the map agree with the reference under some partition (the
    union of the cells explained, the count the recursion itself maximises), the largest
    gain first, until no replacement adds a cell. *Rivals* (transforms found elsewhere: the
-   recovery's hypotheses of suspects too few for a new partition, and of each partition's
-   own cells registered alone) are offered to every
+   recovery's hypotheses of suspects too few for a new partition, and of the own cells of
+   each partition whose free space does not show that it is in place, registered alone)
+   are offered to every
    partition too: a part registered where a twin of its room is (turned by 90 or 180
    degrees, or far off) fits its own cells there, so no refit moves it, but its true place
    leaves a few of its cells unexplained, and the recovery finds the true transform among

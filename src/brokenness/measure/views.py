@@ -90,7 +90,7 @@ def remainder_cells(
     The same cells as ``remainder_states(...) == OCCUPIED`` (for a method that does not use
     free space), as a crop of the box of the cells left: the cost follows those cells, not
     the grid. Isolated cells are found on that box (a cell outside it is never occupied).
-    When the cells come row by row (as :func:`~brokenness.grid.cell_points` lists them),
+    When the cells come row by row (as :func:`~brokenness.masking.cell_points` lists them),
     they are handed on as the crop's ``points`` too.
     """
     r, c = rows[remaining], cols[remaining]

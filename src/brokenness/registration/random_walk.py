@@ -94,7 +94,8 @@ numerical settings of the original implementation were not available to us.
   heaviest of degrees 4 and 5 (8-10 of it in plain walks), 34.3 for one (intel degree 5, 19.4
   in region walks; it is cut, and comes out 4 instead of 5); on the maps of other places the
   plain walks alone are 9-19. A budget of 8 for the wider walks alone cut csail degree 5's
-  recovery short (4 instead of 5). See the README, issue 13, for what it changed.
+  recovery short (4 instead of 5). See ``docs/benchmark-history.md``, issue 13, for what it
+  changed.
 - Subsampling (ours): when a map has more than ``max_points`` = 6000 occupied (or free)
   cells, an evenly spaced subset of them (row-major order, independent of the seed) takes
   part in the walk, and ``agr``/``dis`` are scaled back to cells; the final ranking of the
