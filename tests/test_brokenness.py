@@ -259,6 +259,9 @@ def test_empty_and_bad_inputs(maps):
         compute_brokenness(ref, empty)
     with pytest.raises(ParameterError):
         compute_brokenness(ref, ref, threshold=0)
+    # an absurd threshold is refused, and the message names the value given
+    with pytest.raises(ParameterError, match=r"threshold 1000000\.0 implies a neighbourhood"):
+        compute_brokenness(ref, ref, threshold=1e6)
     with pytest.raises(ParameterError):
         compute_brokenness(ref, ref, method="magic")
     with pytest.raises(MapError):

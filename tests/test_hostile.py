@@ -211,6 +211,9 @@ def test_absurd_batch_options(tmp_path, capsys):
 def test_absurd_seed_and_dpi(tmp_path, capsys):
     refused(capsys, "compute", MAP, REFERENCE, "--seed", "-5", match="--seed")
     refused(capsys, "compare", tmp_path, "--dpi", "10000000", match="--dpi")
+    # one range for every picture: compare and compute alike
+    for command in (["compare", tmp_path], ["compute", MAP, REFERENCE]):
+        refused(capsys, *command, "--dpi", "5", match="--dpi must be between 10 and 1200")
 
 
 # -- numpy -----------------------------------------------------------------------------------

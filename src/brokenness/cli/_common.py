@@ -61,11 +61,26 @@ def console(*, stderr: bool = False) -> Any:
     return _Console(file=stream, width=width, soft_wrap=not tty, highlight=False)
 
 
+#: ``--dpi`` of a picture or plot: at least this (a smaller one draws nothing legible) ...
+MIN_DPI = 10
+#: ... and at most this (a larger one would allocate a huge canvas).
+MAX_DPI = 1200
+
+
+def check_dpi(dpi: int) -> None:
+    """Refuse a ``--dpi`` outside ``MIN_DPI..MAX_DPI`` (a :class:`ParameterError`)."""
+    if not MIN_DPI <= dpi <= MAX_DPI:
+        raise ParameterError(f"--dpi must be between {MIN_DPI} and {MAX_DPI}, got {dpi}")
+
+
 def add_verbosity(p: argparse.ArgumentParser) -> None:
     """``-q/--quiet`` and ``-v/--verbose``."""
     group = p.add_mutually_exclusive_group()
     group.add_argument(
-        "-q", "--quiet", action="store_true", help="print nothing but errors (and --json -)"
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="print only errors and warnings (and a report asked for on stdout: --json -)",
     )
     group.add_argument(
         "-v", "--verbose", action="store_true", help="say more (timings, what was loaded)"

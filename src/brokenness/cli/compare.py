@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ._common import add_verbosity, console, plural
+from ._common import add_verbosity, check_dpi, console, plural
 
 __all__ = ["add_parser", "run"]
 
@@ -68,21 +68,15 @@ def add_parser(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
-#: Largest ``--dpi`` of a plot (a larger one would allocate a huge canvas).
-MAX_DPI = 1200
-
-
 def run(args: argparse.Namespace) -> int:
     """Collect the results, print the table, write what was asked for."""
-    from ..errors import ParameterError
     from ..report.collect import collect_results
     from ..report.plots import write_plot
     from ..report.tables import group_table, rich_table, table_format, write_table
 
     if args.table:
         table_format(args.table)  # a bad suffix fails before any work
-    if not 0 < args.dpi <= MAX_DPI:
-        raise ParameterError(f"--dpi must be in 1..{MAX_DPI}, got {args.dpi}")
+    check_dpi(args.dpi)
     from ._outputs import check_output_file, figure_suffixes
 
     if args.table:

@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import NothingFoundWarning
 from ..registration.methods import METHODS
-from ._common import INPUTS_HELP, add_map_options, add_verbosity, console, load_pair, plural
+from ._common import (
+    INPUTS_HELP,
+    add_map_options,
+    add_verbosity,
+    check_dpi,
+    console,
+    load_pair,
+    plural,
+)
 from .main import EXIT_NOT_MEASURED, EXIT_OK
 
 if TYPE_CHECKING:
@@ -90,7 +98,10 @@ def add_parser(subparsers: Any) -> None:
         "--threshold",
         type=float,
         default=2.0,
-        help="masking threshold c in reference cells (Manhattan; default 2)",
+        help=(
+            "masking threshold c in cells of the working grid: the finer of the two maps' "
+            "(Manhattan; default 2)"
+        ),
     )
     p.add_argument(
         "--min-partition-fraction",
@@ -151,8 +162,7 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     check_threshold(args.threshold)  # the neighbourhood it implies, before any map is read
     labels = parse_labels(args.label)
-    if not 10 <= args.dpi <= 1200:
-        raise ParameterError(f"--dpi must be between 10 and 1200, got {args.dpi}")
+    check_dpi(args.dpi)
     budget = getattr(args, "time_budget", None)
     if budget is not None and not (budget > 0 and math.isfinite(budget)):
         raise ParameterError(f"--time-budget must be a positive number of seconds, got {budget}")

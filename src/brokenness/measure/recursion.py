@@ -289,7 +289,7 @@ def _compute(
     if not ref.occupied.any():
         raise MapError("the reference map has no occupied cell")
     working, to_working, working_ref, to_reference = _common_resolution(original, ref)
-    check_threshold(opts.loose, working_ref.shape)  # the neighbourhood it implies fits the limits
+    check_threshold(opts.threshold, working_ref.shape)  # the neighbourhood it implies fits
     index = ReferenceIndex.build(working_ref)
     method = opts.method
     kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}

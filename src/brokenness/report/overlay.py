@@ -6,9 +6,9 @@ transform, in grey; every partition's occupied cells in its own colour; occupied
 belong to no partition in black. ``mode="split"`` draws two panels: the map coloured by
 partition in its own frame, and each partition moved by its own transform onto the
 reference (where every part lands; reference walls no part reaches stay grey). The legend
-gives the degree and, per partition, its size, its rotation relative to the largest
-partition (on screen, clockwise or counter-clockwise) and its displacement (metres when the
-map has a resolution, cells otherwise).
+gives the degree and, per partition, its size, how it is turned in the map relative to the
+largest partition (on screen, clockwise or counter-clockwise) and its displacement (metres
+when the map has a resolution, cells otherwise).
 
 Pictures that a paper can print, for maps up to 10000 x 10000 cells and beyond a dozen
 partitions: the picture is cropped to what was explored, and drawn from a raster about the

@@ -521,7 +521,12 @@ def _moved_box(
 
 
 # -- the legend's text --------------------------------------------------------------------------
-def _turn(deg: float) -> str:
+def _turn(offset_deg: float) -> str:
+    """How a partition is turned *in the map*, relative to P0, on screen, from its
+    ``rotation_offset_deg``: that is the offset of its transform (map -> reference), the
+    turn that undoes it, so the part itself is turned the other way (rows point down: a
+    positive angle turns clockwise on screen)."""
+    deg = -offset_deg
     if abs(deg) < 0.05:
         return "not turned"
     way = "clockwise" if deg > 0 else "counter-clockwise"
@@ -568,7 +573,7 @@ def legend_title(result: BrokennessResult) -> str:
     n = len(result.partitions)
     return (
         f"degree {result.degree if result.measured else 'not measured'}, "
-        f"{n} partition{'' if n == 1 else 's'} (turned/off: relative to P0, on screen)"
+        f"{n} partition{'' if n == 1 else 's'} (turned/off: in the map, relative to P0, on screen)"
     )
 
 
