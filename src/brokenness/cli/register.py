@@ -1,10 +1,14 @@
 """``brokenness register REFERENCE MOVING``: the rigid transform that aligns two maps.
 
 What it answers: the one rigid transform under which the most cells of MOVING land on
-reference walls, and the next best distinct hypotheses (``--candidates``). For an unbroken
-map that is *the* alignment. For a broken map it is the alignment of one of its parts,
-usually the largest, but not necessarily (a smaller part with straighter walls can give a
-sharper spectral peak); ``compute`` finds every part and orders them by size.
+reference walls, and the next best distinct hypotheses (``--candidates``). The search is
+that of :func:`brokenness.register` with its defaults (up to ``max(12, N)`` distinct
+hypotheses examined and ranked; ``--candidates N`` only says how many of the ranking are
+shown), so the answer is the same for every ``N`` up to 12 and is the Python API's for the
+same maps. For an unbroken map that is *the* alignment. For a broken map it is the
+alignment of one of its parts, usually the largest, but not necessarily (a smaller part
+with straighter walls can give a sharper spectral peak); ``compute`` finds every part and
+orders them by size.
 """
 
 from __future__ import annotations
@@ -29,11 +33,16 @@ def add_parser(subparsers: Any) -> None:
         description=(
             "Find the rotation and translation that map the cells (x = column, y = row, "
             "down) of MOVING onto REFERENCE (improved Fourier-Mellin registration by "
-            "default). rotation is in cells, a positive angle turning clockwise on screen; "
-            "world is the same transform between the ROS world frames (y up, positive "
-            "counter-clockwise). The answer is the hypothesis under which the most cells of "
-            "MOVING agree: for a broken map, one part's alignment (usually, but not always, "
-            "the largest part's; 'compute' finds every part). "
+            "default). rotation is in degrees in the grid of cells, a positive angle "
+            "turning clockwise on screen, and translation in reference cells; world is the "
+            "same transform between the ROS world frames (degrees, a positive angle "
+            "counter-clockwise, and metres, y up), shown when both maps have a resolution "
+            "and an origin. The registration examines up to max(12, N) distinct hypotheses (N = "
+            "--candidates) and ranks them by the cells of MOVING that agree with reference "
+            "walls under each; the answer is the first of that ranking, the same for every "
+            "N up to 12 and the same as brokenness.register(REFERENCE, MOVING) gives. For a "
+            "broken map it is one part's alignment (usually, but not always, the largest "
+            "part's; 'compute' finds every part). "
             f"{INPUTS_HELP}"
         ),
         epilog="exit status: 0 done; 2 bad input or options (one line on stderr)",
@@ -48,20 +57,13 @@ def add_parser(subparsers: Any) -> None:
         type=int,
         default=3,
         metavar="N",
-        help="number of distinct ranked hypotheses to report (default 3); fewer when the "
-        "method finds no more distinct ones (said so)",
+        help="number of distinct hypotheses to report, the first N of the ranking (default "
+        "3); fewer when the method finds no more distinct ones (said so). Up to max(12, N) "
+        "hypotheses are examined and ranked, so N does not change the answer up to 12",
     )
     add_map_options(p, "reference", "moving")
     add_verbosity(p)
     p.set_defaults(func=run)
-
-
-def _options(method: str, n: int) -> dict[str, Any]:
-    """Method options that let ``n`` distinct hypotheses come out, when there are."""
-    if method != "ifmi":
-        return {}
-    # every rotation peak (not only those half as high as the best), two translations each
-    return {"rotation_peaks": min(max(2, n), 64), "translation_peaks": 2, "peak_ratio": 0.0}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,14 +79,8 @@ def run(args: argparse.Namespace) -> int:
     if args.candidates < 1:
         raise ParameterError(f"--candidates must be at least 1, got {args.candidates}")
     ref, moving = load_pair(args, "reference", "moving")
-    reg = register(
-        ref,
-        moving,
-        method=args.method,
-        seed=args.seed,
-        max_candidates=args.candidates,
-        **_options(args.method, args.candidates),
-    )
+    # the API's search, whatever --candidates is (it only sets how many are reported)
+    reg = register(ref, moving, method=args.method, seed=args.seed, max_candidates=args.candidates)
     record = reg.to_dict()
     record["reference"] = str(args.reference)
     record["moving"] = str(args.moving)

@@ -14,7 +14,23 @@ from ..transform import RigidTransform
 from .base import Candidate, Registration
 from .methods import make_registrar
 
-__all__ = ["as_map", "register"]
+__all__ = ["EXAMINED_HYPOTHESES", "as_map", "register"]
+
+#: Hypotheses :func:`register` examines (refines and ranks) at least, however few it reports:
+#: the search breadth of the measure (``BrokennessOptions.max_candidates``, 12). The best
+#: hypothesis and the ranking do not depend on ``max_candidates`` up to this number.
+EXAMINED_HYPOTHESES = 12
+
+
+def _search_options(method: str, examined: int) -> dict[str, Any]:
+    """Default options of ``method`` that let ``examined`` distinct hypotheses come out.
+
+    For iFMI: ``min(examined, 64)`` rotation peaks (at least 2), every one of them (not only
+    those half as high as the best), two translations each. The random walk needs none.
+    """
+    if method != "ifmi":
+        return {}
+    return {"rotation_peaks": min(max(2, examined), 64), "translation_peaks": 2, "peak_ratio": 0.0}
 
 
 def as_map(value: OccupancyMap | ArrayLike, what: str = "map") -> OccupancyMap:
@@ -63,16 +79,32 @@ def register(
     seed : int, optional
         Seed of the stochastic method (iFMI is deterministic and ignores it).
     max_candidates : int, default 3
-        Number of ranked hypotheses kept in :attr:`Registration.candidates`.
+        Number of hypotheses reported in :attr:`Registration.candidates` (fewer when the
+        method finds no more distinct ones). It does not change the answer: the method is
+        always asked for ``max(EXAMINED_HYPOTHESES, max_candidates)`` distinct hypotheses
+        (:data:`EXAMINED_HYPOTHESES` = 12; for iFMI the most promising ones of its spectral
+        search, each refined at full resolution), which it ranks by the cells of ``moving``
+        that agree with reference walls under each (the random walk: by the cells each
+        explains that better-ranked ones do not); the first ``max_candidates`` of that
+        ranking are reported. The best hypothesis, its confidence and the order of the
+        reported ones are thus the same for every ``max_candidates`` up to 12; asking for
+        more examines that many, and a hypothesis beyond the twelfth may then rank first.
     **options
         Options of the method, e.g. ``n_angles`` or ``max_size`` of
-        :class:`~brokenness.registration.IFMIRegistrar`.
+        :class:`~brokenness.registration.IFMIRegistrar`. For iFMI three of them default to
+        a search wide enough for the hypotheses examined, ``rotation_peaks = min(max(12,
+        max_candidates), 64)``, ``translation_peaks = 2`` and ``peak_ratio = 0`` (every one
+        of those rotation peaks, two translations each), not to the defaults of
+        :class:`~brokenness.registration.IFMIRegistrar`; options given here replace them
+        (a narrower search may yield fewer hypotheses). ``brokenness register`` uses the
+        same defaults: the command line and this function give the same answer.
 
     Returns
     -------
     Registration
-        ``.transform`` maps cells ``(x, y) = (column, row)`` of the *original* ``moving``
-        onto reference cells (with ``scale`` = moving resolution / reference resolution
+        ``.candidates`` are the first ``max_candidates`` of the ranking, best first;
+        ``.transform`` (the best's) maps cells ``(x, y) = (column, row)`` of the *original*
+        ``moving`` onto reference cells (with ``scale`` = moving resolution / reference resolution
         when they differ) and carries the world-frame transform when both maps have a
         resolution and an origin; ``.confidence`` in [0, 1].
 
@@ -124,9 +156,14 @@ def register(
         to_work = RigidTransform(0.0, 0.5 * s - 0.5, 0.5 * s - 0.5 + shift_y, s)
         if work.n_occupied == 0:
             raise MapError("the moving map has no occupied cell left at the reference's resolution")
-    registrar = make_registrar(method, seed=seed, **options)
+    # the search does not depend on how many hypotheses are reported: at least
+    # EXAMINED_HYPOTHESES are examined and ranked, the first max_candidates kept
+    examined = max(EXAMINED_HYPOTHESES, int(max_candidates))
+    registrar = make_registrar(
+        method, seed=seed, **{**_search_options(method, examined), **options}
+    )
     prepared = registrar.prepare_reference(ref_map.states)
-    found = registrar.candidates(prepared, work.states, int(max_candidates))
+    found = registrar.candidates(prepared, work.states, examined)[: int(max_candidates)]
     if not found:  # pragma: no cover - the protocol promises at least one
         raise MapError(f"registration method {method!r} returned no hypothesis")
     candidates = tuple(

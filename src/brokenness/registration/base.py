@@ -113,7 +113,8 @@ class Registration:
     confidence : float
         Quality of the best hypothesis in [0, 1].
     candidates : tuple of Candidate
-        All hypotheses that were scored, best first (the best is ``candidates[0]``).
+        The first ``max_candidates`` of the ranking of the hypotheses examined, best first
+        (the best is ``candidates[0]``).
     method : str
         ``"ifmi"`` or ``"random-walk"``.
     seconds : float
