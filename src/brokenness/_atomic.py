@@ -1,4 +1,9 @@
-"""Atomic file writes: a reader never sees a half-written file, even after a crash or Ctrl-C."""
+"""Atomic file writes: a reader never sees a half-written file, even after a crash or Ctrl-C.
+
+A failure is an :class:`AtomicWriteError` (an :class:`OSError`) that names the file asked
+for, never the temporary file next to it: ``cannot write /proc/x.json: No such file or
+directory``.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +14,23 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_text"]
+__all__ = ["AtomicWriteError", "atomic_path", "atomic_write_bytes", "atomic_write_text"]
+
+
+class AtomicWriteError(OSError):
+    """A file could not be written; ``filename`` is the file asked for (not the temporary one).
+
+    Its text is one line: ``cannot write PATH: REASON``.
+    """
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
+def _write_error(exc: OSError, target: Path) -> AtomicWriteError:
+    """``exc`` (about the temporary file, or without a file) as an error about ``target``."""
+    reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+    return AtomicWriteError(exc.errno, reason, str(target))
 
 
 @contextlib.contextmanager
@@ -18,28 +39,49 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
 
     On any exception (KeyboardInterrupt included) the temporary file is removed and
     ``path`` is left as it was. A new file gets mode 0644, a replaced one keeps its mode.
+
+    Raises
+    ------
+    AtomicWriteError
+        If the temporary file cannot be made, or it cannot replace ``path``; an OSError of
+        the body about the temporary file is raised as one too.
     """
     target = Path(path)
-    # a new file gets the usual 0644 (mkstemp's 0600 would hide results from other users);
-    # a file that is replaced keeps its mode
-    mode = target.stat().st_mode & 0o7777 if target.exists() else 0o644
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
-    os.close(fd)
+    try:
+        # a new file gets the usual 0644 (mkstemp's 0600 would hide results from other
+        # users); a file that is replaced keeps its mode
+        mode = target.stat().st_mode & 0o7777 if target.exists() else 0o644
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        os.close(fd)
+    except OSError as exc:
+        raise _write_error(exc, target) from None
     try:
         yield Path(tmp)
         os.chmod(tmp, mode)
         os.replace(tmp, target)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, AtomicWriteError):
+            if tmp in (exc.filename, exc.filename2):  # never show the temporary name
+                raise _write_error(exc, target) from None
         raise
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically."""
+    """Write ``data`` to ``path`` atomically.
+
+    Raises
+    ------
+    AtomicWriteError
+        If the file cannot be written (no such folder, permission denied, disk full...).
+    """
     with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            _write_and_sync(fh, data)
+        try:
+            with open(tmp, "wb") as fh:
+                _write_and_sync(fh, data)
+        except OSError as exc:
+            raise _write_error(exc, Path(path)) from None
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:

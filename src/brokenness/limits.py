@@ -6,10 +6,10 @@ memory:
 
 * **cells per map**: :data:`MAX_CELLS` (100 million, e.g. 10000 x 10000: 500 m x 500 m at
   5 cm), overridable with the environment variable :data:`MAX_CELLS_ENV`
-  (``BROKENNESS_MAX_CELLS``, a positive integer; read at each check, so it also reaches batch
-  workers). It bounds decoded images and arrays (from their headers), ROS bag grids, a map
-  or reference resampled to the other's resolution, and the neighbourhood that ``threshold``
-  implies;
+  (``BROKENNESS_MAX_CELLS``, a positive integer of at most :data:`MAX_CELLS_CEILING`, 2**53;
+  read at each check, so it also reaches batch workers). It bounds decoded images and arrays
+  (from their headers), ROS bag grids, a map or reference resampled to the other's
+  resolution, and the neighbourhood that ``threshold`` implies;
 * **file sizes**: :func:`max_file_bytes` for images, arrays and result files (8 bytes per
   allowed cell), :data:`MAX_TEXT_BYTES` for map YAML and error files, and
   :data:`MAX_MANIFEST_BYTES` for manifests;
@@ -33,6 +33,7 @@ from .errors import MapError, MapSizeError, ParameterError
 
 __all__ = [
     "MAX_CELLS",
+    "MAX_CELLS_CEILING",
     "MAX_CELLS_ENV",
     "MAX_COORDINATE",
     "MAX_MANIFEST_BYTES",
@@ -53,6 +54,10 @@ __all__ = [
 MAX_CELLS: int = 100_000_000
 #: Environment variable that overrides :data:`MAX_CELLS` (a positive integer).
 MAX_CELLS_ENV: str = "BROKENNESS_MAX_CELLS"
+#: Largest value of :data:`MAX_CELLS_ENV`: 2**53, the largest integer up to which a float
+#: holds every integer exactly (the value is read as a number, ``4e6`` allowed); 8 bytes per
+#: cell (:func:`max_file_bytes`) then still fit a 64-bit file size. Far beyond any memory.
+MAX_CELLS_CEILING: int = 2**53
 #: Bytes per allowed cell that an image, array or result file may take on disk.
 FILE_BYTES_PER_CELL: int = 8
 #: Largest map YAML, batch error file or other small text file read, in bytes.
@@ -85,7 +90,8 @@ def max_cells(environ: Mapping[str, str] | None = None) -> int:
     Raises
     ------
     ParameterError
-        If the variable is set but is not a positive integer.
+        If the variable is set but is not a positive integer of at most
+        :data:`MAX_CELLS_CEILING`.
 
     Examples
     --------
@@ -104,6 +110,11 @@ def max_cells(environ: Mapping[str, str] | None = None) -> int:
         value = math.nan
     if not (math.isfinite(value) and value >= 1 and value == int(value)):
         raise ParameterError(f"{MAX_CELLS_ENV} must be a positive integer, got {text!r}")
+    if value > MAX_CELLS_CEILING:
+        raise ParameterError(
+            f"{MAX_CELLS_ENV} must be at most 2**53 = {MAX_CELLS_CEILING} cells (the largest "
+            f"integer a float holds exactly; far beyond any memory), got {text!r}"
+        )
     return int(value)
 
 

@@ -215,10 +215,14 @@ def _read_csv(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
 
 
 def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+    numbered = [
+        (n, ln)
+        for n, ln in enumerate(text.splitlines(), start=1)
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
+    if not numbered:
         raise ManifestError(f"{path}: empty manifest")
-    reader = csv.DictReader(lines)
+    reader = csv.DictReader([ln for _n, ln in numbered])
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [c for c in _PATH_COLUMNS if c not in header]
     if missing:
@@ -230,8 +234,15 @@ def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, A
         raise ManifestError(f"{path}: duplicate column names in the header")
     rows = []
     for i, raw in enumerate(reader, start=1):
+        line = numbered[reader.line_num - 1][0]  # the file's line (comments, blanks skipped)
         if None in raw:
-            raise ManifestError(f"{path} row {i}: more values than columns")
+            raise ManifestError(f"{path} row {i} (line {line}): more values than columns")
+        if any(v is None for v in raw.values()):  # DictReader fills missing fields with None
+            given = sum(v is not None for v in raw.values())
+            raise ManifestError(
+                f"{path} row {i} (line {line}): fewer values than columns ({given} of "
+                f"{len(header)}; leave a value empty with a comma)"
+            )
         rows.append({k.strip(): v for k, v in raw.items()})
     return rows, {}
 

@@ -847,7 +847,9 @@ def check_options(options: Mapping[str, Any]) -> None:
     Raises
     ------
     ParameterError
-        For an option ``compute_brokenness`` does not have, or a threshold out of range.
+        For an option ``compute_brokenness`` does not have, or one out of its range (a
+        threshold, a ``min_partition_fraction`` outside [0, 1)...: every check of
+        :class:`~brokenness.measure.BrokennessOptions`).
     """
     from dataclasses import fields
 
@@ -863,6 +865,10 @@ def check_options(options: Mapping[str, Any]) -> None:
         )
     if "threshold" in options:
         check_threshold(options["threshold"])
+    given = dict(options)
+    if given.get("registration_options", ()) is None:  # as compute_brokenness takes it
+        given["registration_options"] = ()
+    BrokennessOptions(**given)  # every option in its range, before any pair is started
 
 
 def _check_overlays(kind: str) -> None:
@@ -972,8 +978,8 @@ def run_batch(
         opts = replace(opts, overlays=kind)
     check_options(opts.compute)
     _check_overlays(opts.overlays)
-    if n_workers > 1 and not (scheduler or local_cluster) and os.environ.get(WORKER_MEMORY_ENV):
-        parse_memory(os.environ[WORKER_MEMORY_ENV])  # a bad size: one line, before any work
+    if os.environ.get(WORKER_MEMORY_ENV):  # a bad size: one line, before any work, whatever
+        parse_memory(os.environ[WORKER_MEMORY_ENV])  # the number of workers
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -11,13 +11,15 @@ import os
 import stat
 from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
 from .. import _atomic
-from ..errors import MapError, MapFormatError, MapSizeError
+from ..errors import MapError, MapFormatError, MapSizeError, ParameterError
 from ..limits import max_file_bytes
 
 __all__ = [
     "MapWarning",
+    "as_path",
     "atomic_write_bytes",
     "check_regular",
     "file_kind",
@@ -39,6 +41,36 @@ def one_line(text: object) -> str:
     """Collapse any message (for instance a multi-line YAML parser error) onto one line."""
     return " ".join(str(text).split())
 
+
+def as_path(path: object, what: str = "path") -> Path:
+    """``path`` as a :class:`~pathlib.Path`; anything but a str, bytes or path-like is refused.
+
+    Parameters
+    ----------
+    path : object
+    what : str
+        What the path is, for the message (``"path"``, ``"bag"``...).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ParameterError
+        If ``path`` is None or not a file path.
+    """
+    try:
+        name = os.fspath(path)  # type: ignore[call-overload]
+    except TypeError:
+        shown = "None" if path is None else f"a {type(path).__name__}"
+        raise ParameterError(
+            f"the {what} must be a file path (str or os.PathLike), got {shown}"
+        ) from None
+    return Path(os.fsdecode(name))
+
+
+_CHUNK_BYTES = 1 << 24  # a file that grows while it is read: read on in 16 MiB chunks
 
 _KINDS: tuple[tuple[Callable[[int], bool], str], ...] = (
     (stat.S_ISDIR, "a directory"),
@@ -163,7 +195,7 @@ def read_file_bytes(path: Path, limit: int | None = None, what: str = "map file"
             raise MapError(f"{path}: is {file_kind(st.st_mode)}, not a regular file")
         _check_size(path, st.st_size, cap, what)
         with os.fdopen(fd, "rb", closefd=False) as fh:
-            data = fh.read(cap + 1)
+            data = _read_capped(fh, st.st_size, cap)
     except OSError as exc:
         raise MapError(f"{path}: cannot read the file ({one_line(exc.strerror or exc)})") from None
     finally:
@@ -173,6 +205,26 @@ def read_file_bytes(path: Path, limit: int | None = None, what: str = "map file"
     if not data:
         raise MapFormatError(f"{path}: empty file")
     return data
+
+
+def _read_capped(fh: BinaryIO, expected: int, cap: int) -> bytes:
+    """At most ``cap + 1`` bytes of ``fh``, allocating about ``expected`` bytes first.
+
+    ``fh.read(n)`` allocates ``n`` bytes at once, so the limit itself is never asked for:
+    the size ``fstat`` gave, then (only if the file grew since) chunks up to the limit.
+    """
+    first = min(expected, cap) + 1
+    data = fh.read(first)
+    if len(data) < first:  # the end of the file, where fstat said (or before)
+        return data
+    parts, total = [data], len(data)
+    while total <= cap:
+        more = fh.read(min(cap + 1 - total, _CHUNK_BYTES))
+        if not more:
+            break
+        parts.append(more)
+        total += len(more)
+    return b"".join(parts)
 
 
 def open_nonblocking(path: Path) -> int:

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MIN_RESOLUTION, resolution_in_range
-from ._files import check_regular
+from ._files import as_path, check_regular
 from .arrays import ROW_ORDERS, decode_npy
 from .pixels import (
     DEFAULT_FREE_THRESH,
@@ -160,7 +160,8 @@ def load_map(
         More than :func:`~brokenness.limits.max_cells` cells (checked before decoding), or a
         file larger than :func:`~brokenness.limits.max_file_bytes`.
     ParameterError
-        Invalid ``mode``, ``resolution`` or ``origin`` argument.
+        Invalid ``mode``, ``resolution`` or ``origin`` argument, or a ``path`` that is not a
+        path (``None``...).
 
     Examples
     --------
@@ -172,7 +173,7 @@ def load_map(
         raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
     mode = mode.lower() if mode is not None else None
     resolution, origin = _geometry(resolution, origin)
-    p = Path(os.fspath(path))
+    p = as_path(path, "map path")
     name = str(p)
     if row_order is not None:
         if row_order not in ROW_ORDERS:

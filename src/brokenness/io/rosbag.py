@@ -37,28 +37,34 @@ import os
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
 
-from ..errors import MapError, MapFormatError
+from ..errors import BrokennessError, MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
-from ..limits import check_cells, resolution_in_range
-from ._files import check_regular, one_line
+from ..limits import MAX_TEXT_BYTES, check_cells, resolution_in_range
+from ._files import as_path, check_regular, one_line, read_file_bytes
 
 __all__ = [
+    "MAX_PERIOD",
     "OCCUPANCY_GRID",
     "BagMap",
+    "check_bag",
     "count_bag_maps",
     "iter_bag_maps",
     "load_bag_map",
     "quaternion_yaw",
+    "thinning",
 ]
 
 #: Message type of an occupancy grid, as ``rosbags`` names it for ROS 1 and ROS 2 alike.
 OCCUPANCY_GRID = "nav_msgs/msg/OccupancyGrid"
 _STORAGE_SUFFIXES = (".db3", ".mcap")
+_MAX_NS = 2**63 - 1  # bag time stamps: signed 64-bit nanoseconds
+#: Longest thinning period, seconds: the span of a bag's 64-bit nanosecond time stamps.
+MAX_PERIOD: float = _MAX_NS / 1e9
 
 
 def quaternion_yaw(x: float, y: float, z: float, w: float) -> float:
@@ -178,10 +184,27 @@ def _inside_bag_folder(path: Path) -> bool:
         return False
 
 
+def _listed_files(meta: Path) -> list[str]:
+    """Names of the storage files a rosbag2 ``metadata.yaml`` lists (none if unreadable).
+
+    The bag reader opens these (whatever their suffix); a damaged metadata file is reported
+    by the reader itself.
+    """
+    from ._yaml import parse_yaml
+
+    try:
+        doc = parse_yaml(read_file_bytes(meta, MAX_TEXT_BYTES, "rosbag2 metadata file"), "")
+        names = doc["rosbag2_bagfile_information"]["relative_file_paths"]
+        return [PurePath(str(n)).name for n in names]
+    except (BrokennessError, LookupError, TypeError):
+        return []
+
+
 def _check_bag_files(p: Path) -> None:
     """Every file the bag readers would open must be a regular file (no FIFO, no device).
 
-    A folder is a rosbag2 bag: its ``metadata.yaml`` and every storage file in it are checked.
+    A folder is a rosbag2 bag: its ``metadata.yaml``, the storage files it lists and every
+    ``.db3`` / ``.mcap`` file in it are checked.
     """
     if not p.is_dir():
         check_regular(p, "rosbag")
@@ -189,11 +212,72 @@ def _check_bag_files(p: Path) -> None:
             check_regular(p.parent / "metadata.yaml", "rosbag2 metadata file")
         return
     meta = p / "metadata.yaml"
+    listed: list[str] = []
     if os.path.lexists(meta):
         check_regular(meta, "rosbag2 metadata file")
+        listed = _listed_files(meta)
     for item in sorted(p.iterdir()):
-        if item.suffix.lower() in _STORAGE_SUFFIXES:
+        if item.suffix.lower() in _STORAGE_SUFFIXES or item.name in listed:
             check_regular(item, "rosbag2 storage file")
+
+
+def check_bag(path: str | os.PathLike[str]) -> Path:
+    """Refuse a bag that is missing or whose files are not all regular files.
+
+    Nothing is opened but a rosbag2 ``metadata.yaml`` (itself checked first), so a FIFO or a
+    device (``/dev/zero`` through a symbolic link...) fails at once instead of blocking or
+    being read forever.
+
+    Parameters
+    ----------
+    path : path-like
+        A ROS 1 ``.bag``, a rosbag2 folder or a rosbag2 ``.db3`` / ``.mcap`` file.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    MapError
+        Missing path, or a FIFO, device, socket or directory where a bag file should be.
+    ParameterError
+        If ``path`` is not a path at all (``None``...).
+    """
+    p = as_path(path, "bag")
+    if not os.path.lexists(p):
+        raise MapError(f"{path}: no such file or folder")
+    _check_bag_files(p)
+    return p
+
+
+def thinning(
+    every: int, period: float | None, error: type[BrokennessError] = ParameterError
+) -> int | None:
+    """Check ``every`` and ``period`` (seconds); the period in nanoseconds (None without).
+
+    A period is kept as 64-bit nanoseconds, as bag time stamps are, so it must be finite,
+    non-negative and at most :data:`MAX_PERIOD` seconds (about 292 years).
+
+    Raises
+    ------
+    BrokennessError
+        Of class ``error``, for a bad ``every`` or ``period``.
+    """
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise error(f"every must be a positive integer, got {every!r}")
+    if period is None:
+        return None
+    try:
+        seconds = float(period)
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not (math.isfinite(seconds) and 0 <= seconds <= MAX_PERIOD):
+        raise error(
+            f"period must be a number of seconds in [0, {MAX_PERIOD:.4g}] (bag time stamps "
+            f"are 64-bit nanoseconds), got {period!r}"
+        )
+    return min(round(seconds * 1e9), _MAX_NS)
 
 
 def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> OccupancyMap:
@@ -227,14 +311,11 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     >>> m.shape, m.resolution, m.origin  # doctest: +SKIP
     ((384, 384), 0.05, (-10.0, -10.0, 0.0))
     """
-    p = Path(os.fspath(path))
+    p = check_bag(path)
     source = str(path)
-    if not os.path.lexists(p):
-        raise MapError(f"{source}: no such file or folder")
     if not isinstance(topic, str) or not topic:
         raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
     suffix = p.suffix.lower()
-    _check_bag_files(p)
     try:
         if p.is_dir():
             if not (p / "metadata.yaml").is_file():
@@ -285,6 +366,7 @@ def _open_raw(
     p: Path, topic: str, source: str
 ) -> Iterator[tuple[Iterator[tuple[int, bytes]], Callable[[bytes], Any], int | None]]:
     """(stamp, raw) of every message on ``topic``, a deserialiser, and the message count."""
+    _check_bag_files(p)  # no FIFO or device: opening one would block or never end
     if p.is_dir():
         if not (p / "metadata.yaml").is_file():
             raise MapFormatError(f"{source}: a rosbag2 folder needs a metadata.yaml")
@@ -374,21 +456,17 @@ def iter_bag_maps(
     Raises
     ------
     MapError
-        Missing path, no such topic, bad ``every`` / ``period``.
+        Missing path, a FIFO, device or socket among the bag's files, no such topic, bad
+        ``every`` / ``period`` (see :func:`thinning`; :func:`brokenness.timeline` raises a
+        ParameterError for these).
     MapFormatError
         Corrupt bag, a topic of another message type, an inconsistent grid.
     """
-    p = Path(os.fspath(path))
+    p = check_bag(path)
     source = str(path)
-    if not p.exists():
-        raise MapError(f"{source}: no such file or folder")
     if not isinstance(topic, str) or not topic:
         raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise MapError(f"every must be a positive integer, got {every!r}")
-    if period is not None and not (math.isfinite(period) and period >= 0):
-        raise MapError(f"period must be a non-negative number of seconds, got {period!r}")
-    period_ns = None if period is None else int(round(period * 1e9))
+    period_ns = thinning(every, period, MapError)
     try:
         with _open_raw(p, topic, source) as (raw, deserialize, _total):
             for i, stamp, data in _thinned(raw, every, period_ns):
@@ -412,9 +490,8 @@ def iter_bag_maps(
 
 def count_bag_maps(path: str | os.PathLike[str], topic: str = "/map") -> int | None:
     """Messages on ``topic`` as the bag's index says (``None`` when it does not say)."""
-    p = Path(os.fspath(path))
     try:
-        with _open_raw(p, topic, str(path)) as (_raw, _deserialize, total):
+        with _open_raw(check_bag(path), topic, str(path)) as (_raw, _deserialize, total):
             return total
     except Exception:  # the reading itself reports the errors
         return None

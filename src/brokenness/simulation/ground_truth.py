@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import ParameterError
+from ..errors import MapSizeError, ParameterError
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
 from ..transform import RigidTransform
@@ -196,7 +196,13 @@ def _broken_canvas(
     x0, y0, x1, y1 = extent
     corners = np.array([[x0, y0, 1.0], [x1, y0, 1.0], [x1, y1, 1.0], [x0, y1, 1.0]])
     pts = [(corners @ e.T)[:, :2] for e in errors] + [poses[:, :2]]
-    return grid_geometry(np.concatenate(pts), resolution, margin=_CANVAS_MARGIN)
+    try:
+        return grid_geometry(np.concatenate(pts), resolution, margin=_CANVAS_MARGIN)
+    except MapSizeError as exc:  # the shifts of many bumps add up
+        raise MapSizeError(
+            f"the broken map (its parts shifted apart by the bumps): {exc}; use a smaller bump "
+            "radius or fewer bumps"
+        ) from None
 
 
 def _mapped(
@@ -417,8 +423,12 @@ def draw_broken_map(
     Raises
     ------
     ParameterError
-        If no draw gives the requested degree (``hint`` says what to try).
+        If the bump radius exceeds the world's diagonal
+        (:meth:`~brokenness.simulation.options.BumpOptions.check_radius`), no draw gives the
+        requested degree (``hint`` says what to try), or no partition counts at all (too many
+        bumps, or too coarse a map: the expected degree would be -1).
     """
+    options.check_radius(extent)
     n_scans = len(run.true_poses)
     degree = options.degree
     seen: list[int] = []
@@ -430,12 +440,29 @@ def draw_broken_map(
         seen.append(outcome[1])
         if degree is None or outcome[1] == degree:
             break
+    if outcome is not None and max(seen) < 0:
+        _no_partition_counts(outcome, options.rule, len(seen))
     if outcome is None or (degree is not None and outcome[1] != degree):
         raise ParameterError(
             f"could not make a map of degree {degree} in {options.max_attempts} draws (got "
             f"degrees {sorted(set(seen))}); {hint}"
         )
     return outcome, len(seen)
+
+
+def _no_partition_counts(outcome: _Outcome, rule: HonestRule, draws: int) -> None:
+    """Raise: no partition of the broken map counts, so it has no expected degree."""
+    broken, _expected, parts, *_ = outcome
+    n = broken.n_occupied
+    need = max(rule.min_partition_fraction * n, rule.min_partition_cells)
+    largest = max((p.cells for p in parts), default=0)
+    tries = "" if draws == 1 else f" in any of {draws} draws"
+    raise ParameterError(
+        f"no partition of the broken map counts{tries}, so it has no expected degree: one "
+        f"counts with at least {need:.0f} cells, half of them agreeing with the reference, "
+        f"and the largest has {largest} of the map's {n} occupied cells; use fewer bumps (a "
+        "lower bump probability) or a finer resolution"
+    )
 
 
 def reference_map(

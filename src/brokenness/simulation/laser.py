@@ -19,10 +19,23 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import ParameterError
 from .building import Building
 
-__all__ = ["Laser", "LaserRun", "cast_rays", "route_poses", "simulate_run"]
+__all__ = [
+    "MAX_READINGS",
+    "MAX_SCANS",
+    "Laser",
+    "LaserRun",
+    "cast_rays",
+    "route_poses",
+    "simulate_run",
+]
 
 # sphere-tracing iterations before the remaining beams march in fixed steps
 _SPHERE_STEPS = 48
+#: Most scans of a route (a 500 m building at the default 0.4 m spacing has some 20000).
+MAX_SCANS: int = 1_000_000
+#: Most readings (scans x beams) of a simulated run: 50 million ranges take 400 MB, and ray
+#: casting needs about five times that.
+MAX_READINGS: int = 50_000_000
 
 
 @dataclass(frozen=True)
@@ -120,12 +133,21 @@ def route_poses(
     -------
     ndarray, shape (N, 3)
         ``x, y, theta`` per scan.
+
+    Raises
+    ------
+    ParameterError
+        For fewer than two distinct waypoints, a non-finite or non-positive ``spacing`` or
+        ``turn_step_deg``, or a route of more than :data:`MAX_SCANS` scans.
     """
     pts = np.asarray(route, dtype=float).reshape(-1, 2)
     if len(pts) < 2:
         raise ParameterError("a route needs at least two waypoints")
-    if not (spacing > 0 and turn_step_deg > 0):
-        raise ParameterError("spacing and turn_step_deg must be positive")
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise ParameterError(f"spacing must be a positive number of metres, got {spacing!r}")
+    if not (math.isfinite(turn_step_deg) and turn_step_deg > 0):
+        raise ParameterError(f"turn_step_deg must be a positive number, got {turn_step_deg!r}")
+    _check_scans(pts, spacing, turn_step_deg)
     step = math.radians(turn_step_deg)
     spins = set(spin_at)
     out: list[NDArray[np.float64]] = []
@@ -156,6 +178,18 @@ def route_poses(
     poses = np.concatenate(out)
     poses[:, 2] = np.remainder(poses[:, 2] + math.pi, 2 * math.pi) - math.pi
     return poses
+
+
+def _check_scans(pts: NDArray[np.float64], spacing: float, turn_step_deg: float) -> None:
+    """Refuse a route of more than :data:`MAX_SCANS` scans before any pose is made."""
+    length = float(np.sum(np.hypot(*np.diff(pts, axis=0).T)))
+    turns = (len(pts) - 1) * math.ceil(720.0 / turn_step_deg)  # at most two turns a waypoint
+    scans = length / spacing + len(pts) + turns
+    if not scans <= MAX_SCANS:
+        raise ParameterError(
+            f"a route of {length:.4g} m scanned every {spacing!r} m (and every {turn_step_deg!r}"
+            f" deg of a turn) has more than {MAX_SCANS} scans (MAX_SCANS)"
+        )
 
 
 def cast_rays(
@@ -219,11 +253,13 @@ def cast_rays(
         keep = ~done
         active, x, y, dx, dy, t = (v[keep] for v in (active, x, y, dx, dy, t))
         t += step[keep]
-    # the few beams still marching (grazing along a wall): fixed half-cell steps, all at once
+    # the few beams still marching (grazing along a wall): fixed half-cell steps, all at once;
+    # the solid frame stops each within the grid's diagonal, however long the range
+    reach = min(limit, math.hypot(rows, cols))
     for part in np.array_split(np.arange(len(active)), max(1, len(active) // 256)):
         if len(part) == 0:
             continue
-        ts = t[part, None] + 0.5 * np.arange(int(2 * limit) + 2, dtype=np.float32)[None, :]
+        ts = t[part, None] + 0.5 * np.arange(int(2 * reach) + 2, dtype=np.float32)[None, :]
         c = np.clip((x[part, None] + ts * dx[part, None]).astype(np.int32), 0, cols - 1)
         r = np.clip((y[part, None] + ts * dy[part, None]).astype(np.int32), 0, rows - 1)
         stop = solid[r, c] | (safe[r, c] == 0.0) | (ts >= limit)
@@ -262,6 +298,12 @@ def simulate_run(
     Returns
     -------
     LaserRun
+
+    Raises
+    ------
+    ParameterError
+        For bad ``pose_sigma``, ``spacing`` or ``turn_step_deg`` (:func:`route_poses`), or a
+        run of more than :data:`MAX_READINGS` readings (scans x beams).
     """
     laser = Laser() if laser is None else laser
     rng = np.random.default_rng(0) if rng is None else rng
@@ -270,6 +312,11 @@ def simulate_run(
     poses = route_poses(
         building.route, spacing=spacing, turn_step_deg=turn_step_deg, spin_at=building.spin_at
     )
+    if len(poses) * laser.beams > MAX_READINGS:
+        raise ParameterError(
+            f"{len(poses)} scans of {laser.beams} beams are more than {MAX_READINGS} readings "
+            "(MAX_READINGS): use a larger spacing or fewer beams"
+        )
     angles = laser.angles
     ranges = cast_rays(building.grid, building.truth_resolution, poses, angles, laser.max_range)
     noise = rng.normal(0.0, 1.0, ranges.shape) * laser.range_sigma

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from ..limits import check_cells
 
 __all__ = [
     "DEFAULT_FREE_LOGODDS",
@@ -60,6 +61,8 @@ DEFAULT_FREE_LOGODDS: float = -0.4
 _CHUNK_SAMPLES = 1 << 18
 # free cells gathered before one np.bincount over the whole grid
 _FLUSH_CELLS = 1 << 22
+# samples of one beam before the grid clips it: far beyond any grid, within an int64
+_MAX_SAMPLES = float(2**53)
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,6 +139,9 @@ def grid_geometry(
     ------
     ParameterError
         Without a finite point, or for a non-positive resolution / negative margin.
+    MapSizeError
+        If the grid would have more than :func:`brokenness.limits.max_cells` cells (points
+        spread too far for the resolution).
 
     Examples
     --------
@@ -150,9 +156,12 @@ def grid_geometry(
     pts = pts[np.isfinite(pts).all(axis=1)]
     if len(pts) == 0:
         raise ParameterError("grid_geometry needs at least one finite point")
-    lo = np.floor((pts.min(axis=0) - margin) / resolution + 1e-9)
-    hi = np.ceil((pts.max(axis=0) + margin) / resolution - 1e-9)
-    cols, rows = (int(v) for v in np.maximum(hi - lo, 1))
+    with np.errstate(over="ignore", invalid="ignore"):  # far points: refused just below
+        lo = np.floor((pts.min(axis=0) - margin) / resolution + 1e-9)
+        hi = np.ceil((pts.max(axis=0) + margin) / resolution - 1e-9)
+        span = np.maximum(hi - lo, 1)
+    check_cells(float(span[1]), float(span[0]), f"a grid at {resolution:g} m per cell")
+    cols, rows = (int(v) for v in span)
     # rounded to nanometres, so that e.g. -117 * 0.05 is written as -5.85
     x0, y0 = (round(float(v * resolution), 9) for v in lo)
     return (rows, cols), (x0, y0, 0.0)
@@ -251,7 +260,9 @@ def scan_counts(
         dfy = (np.sin(heading - yaw) * step).astype(np.float32)
         length = np.where(is_hit, rr, max_range)
         length = np.where(valid, length, 0.0)
-        n_samples = np.ceil(length / (step * resolution)).astype(np.int64)
+        # capped (any huge max_range): the grid clips every beam below just after
+        n_samples = np.ceil(np.minimum(length / (step * resolution), _MAX_SAMPLES))
+        n_samples = n_samples.astype(np.int64)
         # clip every beam to the grid (sample k lies at fx0 + k * dfx, fy0 + k * dfy), so
         # that no sample needs a bounds check: k_lo <= k <= k_hi, a hundredth of a cell inside
         k_lo = np.zeros(len(rr))

@@ -92,7 +92,8 @@ class BumpOptions:
     ParameterError
         For conflicting modes, a negative or non-integer seed or degree, rotations outside
         ``0 <= min_rotation <= max_rotation <= 180``, or a non-positive ``max_attempts``. The
-        bump radius and probability are checked when bumps are drawn (:mod:`.bumps`).
+        bump radius and probability are checked when bumps are drawn (:mod:`.bumps`; the
+        radius also against the world's size, :meth:`check_radius`).
 
     Examples
     --------
@@ -136,6 +137,35 @@ class BumpOptions:
             object.__setattr__(self, "bumps", int(self.bumps))
         elif self.bumps is not None:
             object.__setattr__(self, "bumps", tuple(self.bumps))
+
+    @property
+    def drawn(self) -> bool:
+        """True when bumps are drawn (``degree``, a number of ``bumps`` or a probability)."""
+        counted = isinstance(self.bumps, int)
+        return counted or self.degree is not None or self.bump_probability is not None
+
+    def check_radius(self, extent: tuple[float, float, float, float]) -> None:
+        """Refuse a bump radius beyond the diagonal of the world box ``extent`` (metres).
+
+        A longer shift moves a partition off the world it was mapped in entirely, and the
+        broken map's canvas grows with it (up to the number of bumps times the radius).
+        Checked only when bumps are drawn (:attr:`drawn`).
+
+        Raises
+        ------
+        ParameterError
+        """
+        if not self.drawn:
+            return
+        x0, y0, x1, y1 = extent
+        width, height = x1 - x0, y1 - y0
+        diagonal = math.hypot(width, height)
+        if not (0.0 <= self.bump_radius <= diagonal):
+            raise ParameterError(
+                f"bump radius must be in [0, {diagonal:.4g}] m, the diagonal of the simulated "
+                f"world ({width:.4g} m x {height:.4g} m; a longer shift moves a partition off "
+                f"it), got {self.bump_radius!r}"
+            )
 
     @property
     def attempts(self) -> int:

@@ -15,7 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ParameterError
-from .building import generate_building
+from ..limits import check_cells
+from .building import check_building_size, generate_building
 from .bumps import Bump
 from .ground_truth import NOT_OCCUPIED as NOT_OCCUPIED  # defined here before ground_truth
 from .ground_truth import SimulatedMap, SimulatedPartition, break_run, broken_map_from_run
@@ -23,6 +24,13 @@ from .laser import Laser, simulate_run
 from .options import BumpOptions, HonestRule
 
 __all__ = ["SimulatedMap", "SimulatedPartition", "broken_map_from_run", "simulate_broken_map"]
+
+
+def _check_world(width: float, height: float, resolution: float, options: BumpOptions) -> None:
+    """The building's size, its cells and the bump radius, before anything is generated."""
+    check_building_size(width, height)
+    check_cells(height / resolution, width / resolution, f"a {width:g} m x {height:g} m map")
+    options.check_radius((0.0, 0.0, width, height))
 
 
 def simulate_broken_map(
@@ -94,8 +102,13 @@ def simulate_broken_map(
     Raises
     ------
     ParameterError
-        For invalid or conflicting options, or when ``degree`` cannot be reached within
-        ``max_attempts`` draws (try a larger building or fewer bumps).
+        For invalid or conflicting options (a building side over
+        :data:`~brokenness.simulation.building.MAX_BUILDING_SIDE`, a bump radius over the
+        building's diagonal), when ``degree`` cannot be reached within ``max_attempts`` draws
+        (try a larger building or fewer bumps), or when no partition counts (too many bumps
+        or too coarse a map: the expected degree would be -1).
+    MapSizeError
+        If the maps would have more than :func:`brokenness.limits.max_cells` cells.
 
     Examples
     --------
@@ -117,6 +130,7 @@ def simulate_broken_map(
     if not (math.isfinite(resolution) and resolution > 0):
         raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
     width, height = (size, size) if isinstance(size, int | float) else size
+    _check_world(float(width), float(height), resolution, options)
     laser = Laser() if laser is None else laser
     building = generate_building(
         options.seed, width=float(width), height=float(height), truth_resolution=resolution / 2

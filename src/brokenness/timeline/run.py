@@ -145,9 +145,11 @@ def timeline(
     Raises
     ------
     MapError, MapFormatError
-        Bad bag, no such topic, bad reference.
+        Bad bag (a FIFO, a device or a socket among its files is refused before anything is
+        opened), no such topic, bad reference.
     ParameterError
-        Bad options, missing Dask, unreachable scheduler.
+        Bad options (``every``, ``period``: see :func:`brokenness.io.rosbag.thinning`),
+        missing Dask, unreachable scheduler.
 
     Notes
     -----
@@ -161,11 +163,12 @@ def timeline(
     ['t=61.0 s (message 30): break, degree 0 -> 1; 18.2% of the map, +21.3 deg, 1.45 m off']
     """
     from ..io import load_map
-    from ..io.rosbag import iter_bag_maps
+    from ..io.rosbag import check_bag, iter_bag_maps, thinning
 
     started = time.perf_counter()
     if every != 1 and period is not None:
         raise ParameterError("give either every or period, not both")
+    thinning(every, period)
     if scheduler and local_cluster:
         raise ParameterError("give either a scheduler address or local_cluster, not both")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
@@ -174,7 +177,7 @@ def timeline(
         raise ParameterError(f"min_occupied_cells must be >= 0, got {min_occupied_cells!r}")
     compute = dict(options or {})
     ref = reference if isinstance(reference, OccupancyMap) else load_map(reference)
-    bag_path = Path(os.fspath(bag))
+    bag_path = check_bag(bag)  # before any worker starts: no FIFO or device
     save_dir = None if save_results is None else Path(os.fspath(save_results))
     if save_dir is not None:
         save_dir.mkdir(parents=True, exist_ok=True)
