@@ -272,3 +272,13 @@ def test_grid_geometry_of_an_ordinary_grid_unchanged():
     # grid_geometry still sizes an ordinary grid (the new cell check is not in the way)
     shape, origin = grid_geometry(np.array([[0.0, 0.0], [1.0, 2.0]]), 0.1, margin=0.5)
     assert shape == (30, 20) and origin == (-0.5, -0.5, 0.0)
+
+
+def test_timeline_workers_are_bounded_as_a_batchs() -> None:
+    """A timeline starts at most MAX_WORKERS processes, as a batch does: more is refused before
+    anything is read."""
+    from brokenness.limits import MAX_WORKERS
+    from brokenness.timeline.run import timeline
+
+    with pytest.raises(ParameterError, match=f"at most {MAX_WORKERS}"):
+        timeline("no-such.bag", "no-such.yaml", workers=MAX_WORKERS + 1)

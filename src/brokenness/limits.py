@@ -39,6 +39,7 @@ __all__ = [
     "MAX_MANIFEST_BYTES",
     "MAX_RESOLUTION",
     "MAX_TEXT_BYTES",
+    "MAX_WORKERS",
     "MIN_OCCUPIED_CELLS",
     "MIN_RESOLUTION",
     "check_cells",
@@ -73,6 +74,8 @@ MAX_COORDINATE: float = 1e9
 #: Fewest occupied cells a map needs to be measured: the smallest partition of the stopping
 #: rule (``min_partition_cells`` of :func:`brokenness.compute_brokenness`).
 MIN_OCCUPIED_CELLS: int = 30
+#: Most worker processes (or Dask workers of a local cluster) a batch or a timeline starts.
+MAX_WORKERS: int = 256
 
 
 def max_cells(environ: Mapping[str, str] | None = None) -> int:

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError, NothingFoundWarning, ParameterError
+from ..limits import MAX_WORKERS
 from .manifest import OVERLAY_KINDS, Manifest, Pair, pairs_of
 
 if TYPE_CHECKING:
@@ -792,8 +793,6 @@ def _previous(pair: Pair, out: Path, status: str = STATUS_SKIPPED) -> RowResult 
         return None  # damaged: evaluate again (the new file replaces it atomically)
 
 
-#: Most worker processes (or Dask workers of a local cluster) a batch starts.
-MAX_WORKERS = 256
 #: File in the output folder that a running batch holds locked.
 LOCK_NAME = ".brokenness-batch.lock"
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..grid import OccupancyMap
+from ..limits import MAX_WORKERS
 from .events import find_events
 from .executors import make_executor
 from .frames import TimelineFrame, TimelineResult
@@ -173,6 +174,8 @@ def timeline(
         raise ParameterError("give either a scheduler address or local_cluster, not both")
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"workers must be a positive integer, got {workers!r}")
+    if workers > MAX_WORKERS:
+        raise ParameterError(f"workers must be at most {MAX_WORKERS}, got {workers}")
     if isinstance(min_occupied_cells, bool) or int(min_occupied_cells) < 0:
         raise ParameterError(f"min_occupied_cells must be >= 0, got {min_occupied_cells!r}")
     compute = dict(options or {})
