@@ -68,7 +68,7 @@ def case():
 def test_free_space_counts_are_those_of_the_contradiction(case) -> None:
     broken, points, _, found, truth, index = case
     clear = ClearFree(broken, SETTINGS.threshold)
-    owned = free_space(found, points, clear)
+    owned = free_space(found, points, clear, index)
     whole = contradiction(found, points, clear, index)
     again = contradiction(found, points, clear, index, owned)
     assert np.array_equal(whole.counted, again.counted)

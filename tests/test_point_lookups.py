@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from brokenness._points import cells_at, point_norms, squared_norms, take_rows
-from brokenness.measure import recovery
+from brokenness.measure import support
 
 
 @pytest.mark.parametrize("seed", range(10))
@@ -67,7 +67,7 @@ def _box_filter_counts(
 def test_window_counts_are_the_box_filter_counts(
     seed: int, band_cells: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(recovery, "_BAND_CELLS", band_cells)
+    monkeypatch.setattr(support, "_BAND_CELLS", band_cells)
     rng = np.random.default_rng(seed)
     shape = (int(rng.integers(5, 120)), int(rng.integers(5, 120)))
     n = int(rng.integers(1, shape[0] * shape[1] // 3 + 2))
@@ -77,5 +77,5 @@ def test_window_counts_are_the_box_filter_counts(
     at = rng.random(n) < 0.5
     at[int(rng.integers(0, n))] = True
     radius = int(rng.integers(1, 8))
-    got = recovery._window_counts(rows, cols, which, at, shape, radius)
+    got = support.window_counts(rows, cols, which, at, shape, radius)
     np.testing.assert_array_equal(got, _box_filter_counts(rows, cols, which, at, shape, radius))

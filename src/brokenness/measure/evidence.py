@@ -14,7 +14,8 @@ This module measures that, once the partitions are known:
   so that wall thickness and a residual error do not count) belongs to the partition of its
   nearest occupied cell (found on a grid of 2 x 2 blocks): the scan that saw a cell free
   is, most likely, the scan that saw the wall behind it (a broken map's free space is the
-  union of its partitions');
+  union of its partitions'). An occupied cell is its partition's wall unless the
+  partition does not explain its neighbourhood and another one does (:func:`wall_owners`);
 * it is moved by that partition's transform; it *contradicts* when it lands on an occupied
   reference cell, and counts when it lands on a known reference cell at all;
 * the *chance rate* ``q`` is the share of the known reference cells that are occupied: the
@@ -49,6 +50,7 @@ from ..masking import ReferenceIndex
 from ..masking.distance import beyond
 from ..transform import RigidTransform
 from .partitions import Found, owners
+from .support import SUPPORT_RADIUS, SUPPORT_SHARE, window_counts
 from .views import isolated_points
 
 __all__ = [
@@ -61,6 +63,7 @@ __all__ = [
     "contradiction",
     "free_space",
     "wall_contradiction",
+    "wall_owners",
 ]
 
 #: A map is measured only if its free space crosses reference walls at most this share of
@@ -243,7 +246,7 @@ def contradiction(
     """
     k = len(found)
     if owned is None:
-        owned = free_space(found, points, clear)
+        owned = free_space(found, points, clear, index)
     counted = np.zeros(k, np.int64)
     contradicting = np.zeros(k, np.int64)
     for start in range(0, owned.owner.size, _CHUNK):  # bounded temporaries
@@ -348,9 +351,58 @@ def _clear_cells(states: NDArray[np.int8], threshold: float) -> _Cells:
     return _Cells(strided if stride == 1 else strided.copy(), stride, (r0, r1, c0, c1))
 
 
-def free_space(found: list[Found], points: NDArray[np.float64], clear: ClearFree) -> FreeSpace:
+def wall_owners(
+    found: list[Found], points: NDArray[np.float64], index: ReferenceIndex, clear: ClearFree
+) -> NDArray[np.int16]:
+    """The partition whose wall each occupied cell is, for the free space it bounds.
+
+    Each cell of a partition is its partition's wall, unless it is *incoherent* there and
+    *coherent* under another partition that also explains it: under its own partition's
+    transform fewer than :data:`~brokenness.measure.support.SUPPORT_SHARE` of the occupied
+    cells around it agree with the reference, under the other's (the one under which most
+    do) at least that share. The recovery's test of a partition's cells
+    (:mod:`~brokenness.measure.support`), asked of a wall that several partitions explain:
+    where two parts of a broken map meet or overlap, a wall the greedy recursion gave to one
+    partition is often the other part's (it agrees under both transforms, by coincidence
+    along a long wall), and the free space in front of it was seen by the scans that saw
+    the walls around it. Cells of no partition are ``-1``.
+    """
+    owner = np.full(points.shape[0], -1, dtype=np.int16)
+    for j, f in enumerate(found):
+        owner[f.members] = j
+    if len(found) < 2:
+        return owner
+    threshold = clear.threshold
+    agree = np.stack(
+        [index.occupied_agreement(f.transform.apply(points), threshold) for f in found]
+    )
+    ambiguous = (owner >= 0) & (np.count_nonzero(agree, axis=0) >= 2)
+    if not ambiguous.any():
+        return owner
+    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
+    shape = clear.working.shape
+    support = np.stack(
+        [window_counts(rows, cols, a, ambiguous, shape, SUPPORT_RADIUS) for a in agree]
+    )
+    # the share of the occupied cells around each that agree under each partition
+    everything = np.ones(points.shape[0], dtype=bool)
+    around = window_counts(rows, cols, everything, ambiguous, shape, SUPPORT_RADIUS)
+    share = support / np.maximum(around, 1.0)
+    share[~agree[:, ambiguous]] = -1.0
+    own = owner[ambiguous].astype(np.intp)
+    m = np.arange(own.size)
+    best = np.argmax(share, axis=0)  # the first of ties
+    # incoherent under its own partition, coherent under another: that one's wall
+    switch = (share[own, m] < SUPPORT_SHARE) & (share[best, m] >= SUPPORT_SHARE)
+    owner[ambiguous] = np.where(switch, best, own)
+    return owner
+
+
+def free_space(
+    found: list[Found], points: NDArray[np.float64], clear: ClearFree, index: ReferenceIndex
+) -> FreeSpace:
     """The map's clear free cells and the partition of ``found`` that owns each (the one of
-    the nearest wall of a partition; arguments as for :func:`contradiction`)."""
+    the nearest wall, :func:`wall_owners`; arguments as for :func:`contradiction`)."""
     empty = FreeSpace(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int16), 1)
     x, y = clear.cells()
     if not found or x.size == 0:
@@ -358,9 +410,7 @@ def free_space(found: list[Found], points: NDArray[np.float64], clear: ClearFree
     r0, r1, c0, c1 = clear.box
     # the walls that label free space: cells of a partition, not isolated (a speck of noise
     # that one partition's transform happens to explain must not claim the room around it)
-    owner = np.full(points.shape[0], -1, dtype=np.int16)
-    for j, f in enumerate(found):
-        owner[f.members] = j
+    owner = wall_owners(found, points, index, clear)
     px, py = points[:, 0].astype(np.intp) - c0, points[:, 1].astype(np.intp) - r0
     in_box = (py >= 0) & (py < r1 - r0) & (px >= 0) & (px < c1 - c0)
     px, py, owner = px[in_box], py[in_box], owner[in_box]  # row-major, as the box's labels

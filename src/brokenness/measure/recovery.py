@@ -85,6 +85,15 @@ from .evidence import Contradiction, contradiction
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
+from .support import (
+    SUPPORT_RADIUS,
+    SUPPORT_SHARE,
+    box_counts,
+    in_box,
+    occupied_around,
+    window_box,
+    window_counts,
+)
 from .views import candidates_of, exhausted, moving_remainder, occupied_count
 
 __all__ = [
@@ -101,13 +110,6 @@ __all__ = [
     "taken_cells",
 ]
 
-#: Half-width (cells) of the square window in which a cell's support is counted
-#: (0.6 m at 5 cm cells).
-SUPPORT_RADIUS = 12
-#: A cell whose partition's transform makes fewer than this share of the occupied cells
-#: around it agree is a suspect; a hypothesis explains a cell coherently when it makes at
-#: least this share agree.
-SUPPORT_SHARE = 0.4
 #: Suspects with at least this share of suspects around them form the regions searched first.
 DENSE_SHARE = 0.3
 #: The neighbourhood of a settled partition registered alone for a rival
@@ -155,16 +157,6 @@ def agreement_support(
     """
     around = occupied_around(points, shape, radius)
     return _support(found, points, index, threshold, shape, radius, around)
-
-
-def occupied_around(
-    points: NDArray[np.float64], shape: tuple[int, int], radius: int = SUPPORT_RADIUS
-) -> NDArray[np.float64]:
-    """Per occupied cell, the occupied cells in the square window around it (a quantity of
-    the map alone, computed once a call: :attr:`~brokenness.measure.context.MapContext.around`)."""
-    rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
-    everything = np.ones(points.shape[0], dtype=bool)
-    return _window_counts(rows, cols, everything, everything, shape, radius)
 
 
 def drop_incoherent(found: list[Found], context: MapContext) -> list[Found]:
@@ -226,113 +218,11 @@ def _share(
     windows around the cells ``at`` (``at`` among them)."""
     rows, cols = points[:, 1].astype(np.intp), points[:, 0].astype(np.intp)
     ar, ac = rows[at], cols[at]
-    box = _box(ar, ac, shape, radius)
-    near = np.flatnonzero(_inside(rows, cols, box))  # only those can count
+    box = window_box(ar, ac, shape, radius)
+    near = np.flatnonzero(in_box(rows, cols, box))  # only those can count
     near = near[index.occupied_agreement(transform.apply(take_rows(points, near)), threshold)]
-    counts = _box_counts(rows.take(near), cols.take(near), ar, ac, box, radius)
+    counts = box_counts(rows.take(near), cols.take(near), ar, ac, box, radius)
     return counts / around[at], near
-
-
-def _window_counts(
-    rows: NDArray[np.intp],
-    cols: NDArray[np.intp],
-    which: NDArray[np.bool_],
-    at: NDArray[np.bool_],
-    shape: tuple[int, int],
-    radius: int,
-) -> NDArray[np.float64]:
-    """At the cells ``at``, how many ``which`` cells lie in the square window around them.
-
-    Only the box around ``at`` is counted (one integral image a band of rows)."""
-    ar, ac = rows[at], cols[at]
-    box = _box(ar, ac, shape, radius)
-    inside = which & _inside(rows, cols, box)
-    return _box_counts(rows[inside], cols[inside], ar, ac, box, radius)
-
-
-def _box_counts(
-    wr: NDArray[np.intp],
-    wc: NDArray[np.intp],
-    ar: NDArray[np.intp],
-    ac: NDArray[np.intp],
-    box: tuple[int, int, int, int],
-    radius: int,
-) -> NDArray[np.float64]:
-    """:func:`_window_counts` of the cells ``(wr, wc)``, all inside ``box`` (that of the
-    windows around the cells ``(ar, ac)``), at the cells ``(ar, ac)``."""
-    r0, r1, c0, c1 = box
-    width = c1 - c0 + 2 * radius  # the box's columns and the margins its windows reach
-    # in bands of rows (each with the rows its windows reach): bounded temporaries
-    band = max(2 * radius + 1, -(-_BAND_CELLS // width))
-    if r1 - r0 <= band:  # the usual case: one band holds the box
-        return _band_counts(wr, wc, ar, ac, (r0, r1 - r0), (c0, width), radius)
-    out = np.zeros(ar.shape[0], dtype=np.float64)
-    for b0 in range(r0, r1, band):
-        b1 = min(b0 + band, r1)
-        here = (ar >= b0) & (ar < b1)
-        if not here.any():
-            continue
-        near = (wr >= b0 - radius) & (wr < b1 + radius)
-        out[here] = _band_counts(
-            wr[near], wc[near], ar[here], ac[here], (b0, b1 - b0), (c0, width), radius
-        )
-    return out
-
-
-def _band_counts(
-    wr: NDArray[np.intp],
-    wc: NDArray[np.intp],
-    ar: NDArray[np.intp],
-    ac: NDArray[np.intp],
-    band: tuple[int, int],
-    columns: tuple[int, int],
-    radius: int,
-) -> NDArray[np.float64]:
-    """At the cells ``(ar, ac)`` of the rows ``band = (b0, rows)``, how many of the cells
-    ``(wr, wc)`` lie in the square window around them, from one integral image.
-
-    The grid holds the band's rows and the ``radius`` rows above and below it, and the
-    ``columns = (c0, width)`` from ``c0 - radius`` on (every window inside it, the cells off
-    the map zero as in a box filter with a constant border); each window's count is four
-    lookups of the integral image (whole numbers: exactly what a box filter counts).
-    """
-    b0, rows = band
-    c0, width = columns
-    side = 2 * radius + 1
-    grid = np.zeros((rows + 2 * radius, width), np.uint8)
-    # marked by flat index (a fresh C-contiguous grid: its flat view), a third of the cost
-    # of indexing it by rows and columns
-    grid.reshape(-1)[(wr - (b0 - radius)) * width + (wc - (c0 - radius))] = 1
-    sums = np.asarray(cv2.integral(grid, sdepth=cv2.CV_32S)).reshape(-1)
-    step = width + 1  # the integral image has a leading row and column of zeros
-    corner = (ar - b0) * step + (ac - c0)  # each window's first row and column in the grid
-    far = side * step
-    counts = (
-        sums.take(corner + (far + side)) - sums.take(corner + far) - sums.take(corner + side)
-    ) + sums.take(corner)
-    return counts.astype(np.float64)
-
-
-#: Cells of a band of rows of :func:`_window_counts` (about 2 million: its integral image,
-#: four bytes a cell, takes what the box filter's two-byte counts of twice as many took).
-_BAND_CELLS = 1 << 21
-
-
-def _box(
-    rows: NDArray[np.intp], cols: NDArray[np.intp], shape: tuple[int, int], radius: int
-) -> tuple[int, int, int, int]:
-    """Rows ``[r0, r1)`` and columns ``[c0, c1)`` of the windows around the cells
-    ``(rows, cols)``."""
-    r0, r1 = max(int(rows.min()) - radius, 0), min(int(rows.max()) + radius + 1, shape[0])
-    c0, c1 = max(int(cols.min()) - radius, 0), min(int(cols.max()) + radius + 1, shape[1])
-    return r0, r1, c0, c1
-
-
-def _inside(
-    rows: NDArray[np.intp], cols: NDArray[np.intp], box: tuple[int, int, int, int]
-) -> NDArray[np.bool_]:
-    r0, r1, c0, c1 = box
-    return (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
 
 
 #: Side of the blocks in which :func:`taken_cells` counts a neighbourhood's agreeing cells,
@@ -405,7 +295,7 @@ def taken_cells(
     shape = (int(rows.max()) + 1, int(cols.max()) + 1)
     coherent = agree.copy()
     coherent[agree] = (
-        _window_counts(rows, cols, agree, agree, shape, SUPPORT_RADIUS)
+        window_counts(rows, cols, agree, agree, shape, SUPPORT_RADIUS)
         >= SUPPORT_SHARE * around[agree]
     )
     better = (owner < 0) | (neighbourhood_counts(agree, points) > owner_count)
@@ -493,7 +383,7 @@ def recover(
         # of the partitions found are lines of them), then every suspect
         dense = suspect.copy()
         dense[suspect] = (
-            _window_counts(rows, cols, suspect, suspect, context.shape, SUPPORT_RADIUS)
+            window_counts(rows, cols, suspect, suspect, context.shape, SUPPORT_RADIUS)
             >= DENSE_SHARE * around[suspect]
         )
         tries = [dense]
@@ -595,7 +485,7 @@ def _neighbourhood(members: NDArray[np.intp], search: _Search, radius: int) -> N
     mine = np.zeros(pts.shape[0], dtype=bool)
     mine[members] = True
     everything = np.ones(pts.shape[0], dtype=bool)
-    near = _window_counts(rows, cols, mine, everything, search.context.shape, radius)
+    near = window_counts(rows, cols, mine, everything, search.context.shape, radius)
     return np.flatnonzero(near > 0)
 
 

@@ -442,7 +442,7 @@ def _relocated(
     if len(found) < 2:
         return found, None  # a lone partition's cells are what the first step registered
     points, index, settings, clear = context.points, context.index, context.settings, context.clear
-    owned = free_space(found, points, clear)
+    owned = free_space(found, points, clear, index)
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(found, context, registrar, whole, which)

@@ -352,7 +352,7 @@ class _FreeSpaceTest:
 
     def _clears(self, j: int, old: RigidTransform, new: RigidTransform) -> bool:
         if self._owned is None:
-            self._owned = free_space(*self._args)
+            self._owned = free_space(*self._args, self._index)
         n_old, x_old = self._owned.counts(j, old, self._index)
         n_new, x_new = self._owned.counts(j, new, self._index)
         if min(n_old, n_new) * self._chance < MIN_EXPECTED:
