@@ -78,6 +78,14 @@ def test_compute_npy_in_both_row_orders(tmp_path, capsys, ref):
     assert ".npy maps only" in capsys.readouterr().err
 
 
+def test_a_topic_without_a_bag_is_refused(capsys):
+    """--topic names the map topic of a ROS bag: given with no bag, it is a mistake (as
+    --row-order without a .npy), not silently ignored."""
+    assert main(["compute", str(REFERENCE), str(REFERENCE), "--topic", "/map"]) == 2
+    err = capsys.readouterr().err
+    assert "--topic applies to ROS bags only" in err and len(err.strip().splitlines()) == 1
+
+
 def test_bare_image_warns_and_takes_its_resolution(tmp_path, capsys, ref):
     half = resample_to_resolution(ref, 0.1)
     save_map(OccupancyMap(half.states), tmp_path / "half.png")

@@ -162,6 +162,8 @@ def load_pair(
     row_order = getattr(args, "row_order", None)
     if row_order is not None and not any(_is_npy(p) for p in paths):
         raise ParameterError("--row-order applies to .npy maps only")
+    if getattr(args, "topic", None) is not None and not any(_is_bag(p) for p in paths):
+        raise ParameterError("--topic applies to ROS bags only")
     maps: list[OccupancyMap] = []
     for who, path in zip((first, second), paths, strict=True):
         res = getattr(args, f"{who}_resolution", None)
@@ -192,6 +194,12 @@ def load_pair(
 
         warnings.warn(message, MapWarning, stacklevel=2)
     return maps[0], maps[1]
+
+
+def _is_bag(path: str) -> bool:
+    from ..io.load import is_rosbag
+
+    return is_rosbag(Path(path))
 
 
 def _same_file(a: str, b: str) -> bool:
