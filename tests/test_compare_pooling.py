@@ -92,6 +92,11 @@ def test_plot_has_expected_degree_line_and_n_per_point(runs):
     # without expected degrees, no such panel
     plain = [e for e in entries if "expected_degree" not in e.labels]
     assert len(comparison_figure(plain).axes) == 1
+    # one expected degree only: the line still has a length (it is drawn, not a point)
+    one = [e for e in entries if "expected_degree" in e.labels]
+    one = [e for e in one if e.labels["expected_degree"] == one[0].labels["expected_degree"]]
+    (line,) = [ln for ln in comparison_figure(one).axes[0].get_lines() if ln.get_label() == "y = x"]
+    assert np.ptp(line.get_xdata()) > 0
 
 
 def test_cli_compare_plot_file(runs, tmp_path):

@@ -160,6 +160,8 @@ def plot_degree_vs(
             )
     if x_label == EXPECTED_LABEL and xs_all:
         lo, hi = xs_all[0], xs_all[-1]
+        if hi - lo < 1:  # a single expected degree: half a degree either side, a visible line
+            lo, hi = lo - 0.5, hi + 0.5
         ax.plot([lo, hi], [lo, hi], linestyle="--", color="0.45", linewidth=1.0, label="y = x")
         ax.set_ylabel("degree found")
     ax.set_xlabel(x_label)
