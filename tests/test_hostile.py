@@ -8,7 +8,6 @@ rows (kills, Ctrl-C, two batches on one folder) run the real command in a subpro
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
@@ -18,11 +17,11 @@ import subprocess
 import sys
 import time
 import zipfile
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _alarm import alarm
 from PIL import Image
 
 import brokenness
@@ -36,22 +35,6 @@ MAP = EXAMPLES / "broken_building_31.yaml"
 REFERENCE = EXAMPLES / "building_31.yaml"
 SECONDS = 5.0  # the issue's target for every row
 POSIX = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
-
-
-@contextlib.contextmanager
-def alarm(seconds: int = 20) -> Iterator[None]:
-    """Fail (instead of hanging) when the block takes longer than ``seconds``."""
-
-    def hung(signum: int, frame: object) -> None:
-        raise TimeoutError(f"hung for more than {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 def run_cli(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, float]:

@@ -6,16 +6,14 @@ fails the test instead of hanging the suite.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
-import signal
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _alarm import alarm
 
 import brokenness
 from brokenness._atomic import AtomicWriteError, atomic_write_text
@@ -33,22 +31,6 @@ MAP = EXAMPLES / "broken_building_31.yaml"
 REFERENCE = EXAMPLES / "building_31.yaml"
 POSIX = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
 DEV_ZERO = pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
-
-
-@contextlib.contextmanager
-def alarm(seconds: int = 10) -> Iterator[None]:
-    """Fail (instead of hanging) when the block takes longer than ``seconds``."""
-
-    def hung(signum: int, frame: object) -> None:
-        raise TimeoutError(f"hung for more than {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
 
 
 def refused(capsys: pytest.CaptureFixture[str], *argv: object, match: str) -> str:
