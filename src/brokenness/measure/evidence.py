@@ -367,9 +367,7 @@ def wall_owners(
     along a long wall), and the free space in front of it was seen by the scans that saw
     the walls around it. Cells of no partition are ``-1``.
     """
-    owner = np.full(points.shape[0], -1, dtype=np.int16)
-    for j, f in enumerate(found):
-        owner[f.members] = j
+    owner = owners(found, points.shape[0]).astype(np.int16)
     if len(found) < 2:
         return owner
     threshold = clear.threshold

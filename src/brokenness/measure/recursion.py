@@ -149,9 +149,10 @@ from .partitions import (
     merge_target,
     with_fringe,
 )
-from .recovery import drop_incoherent, occupied_around, recover, relocation_rivals
+from .recovery import drop_incoherent, recover, relocation_rivals
 from .result import BrokennessResult, Partition
 from .settle import settle
+from .support import occupied_around
 from .views import (
     candidates_of,
     exhausted,
