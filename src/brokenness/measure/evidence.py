@@ -188,7 +188,7 @@ class FreeSpace:
         """``(counted, contradicting)`` of partition ``j``'s free cells moved by
         ``transform``: those that land on known reference cells, and those of them that land
         on occupied ones."""
-        return _landing(self.points(self.owner == j), transform, index)
+        return landing(self.points(self.owner == j), transform, index)
 
 
 def chance_rate(index: ReferenceIndex) -> float:
@@ -198,10 +198,12 @@ def chance_rate(index: ReferenceIndex) -> float:
     return float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
 
 
-def _landing(
+def landing(
     owned: NDArray[np.float64], transform: RigidTransform, index: ReferenceIndex
 ) -> tuple[int, int]:
-    """:meth:`FreeSpace.counts` of the cells ``owned``."""
+    """``(counted, contradicting)`` of the free cells ``owned`` (points ``(x, y)``) moved by
+    ``transform``: those that land on known reference cells, and those of them that land on
+    occupied ones (:meth:`FreeSpace.counts` of a partition's cells)."""
     if owned.shape[0] == 0:
         return 0, 0
     h, w = index.reference.shape
@@ -254,7 +256,7 @@ def contradiction(
         for j, f in enumerate(found):
             sel = np.flatnonzero(owner == j)
             if sel.size:
-                n, hits = _landing(owned.points(sel + start), f.transform, index)
+                n, hits = landing(owned.points(sel + start), f.transform, index)
                 counted[j] += n
                 contradicting[j] += hits
     return Contradiction(counted, contradicting, chance_rate(index), owned.stride)

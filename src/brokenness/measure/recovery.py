@@ -54,8 +54,12 @@ partition whose free space does not show that it is in place
 (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`) are also registered alone, and
 the best hypothesis that puts them elsewhere than every partition does is a rival too:
 registered alone, a part's cells give their true place among their hypotheses, though the
-place it was found at fits them too. After the settle step,
-the recovery runs again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
+place it was found at fits them too. Those cells are also placed at every translation, at
+the hypotheses' rotations, and the placement that explains them about as well and whose
+free space crosses the reference's walls least is a rival too
+(:mod:`~brokenness.measure.placement`): the true place of a part held at a twin is often
+not among the registration's translation peaks. After the settle step, the recovery runs
+again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
 settled transforms leave clearer suspects.
 
 On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
@@ -81,10 +85,11 @@ from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 from .context import MapContext
-from .evidence import Contradiction, contradiction
+from .evidence import Contradiction, FreeSpace, contradiction, free_space
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
+from .placement import CoarseAgreement, free_placement
 from .support import (
     SUPPORT_RADIUS,
     SUPPORT_SHARE,
@@ -420,9 +425,10 @@ def recover(
             break  # it kept too few cells once every cell went to its best partition
         found = grown
     if relocate and len(found) > 1:
-        evidence = contradiction(found, points, context.clear, index)
+        owned = free_space(found, points, context.clear, index)
+        evidence = contradiction(found, points, context.clear, index, owned)
         doubtful = evidence.doubtful(settings.significance)
-        rivals += _relocations(search, found, None, doubtful)
+        rivals += _relocations(search, found, None, doubtful, owned)
     return found, rivals
 
 
@@ -432,6 +438,7 @@ def relocation_rivals(
     registrar: Registrar,
     reference: Any,
     which: Sequence[int] | None = None,
+    free: FreeSpace | None = None,
 ) -> list[RigidTransform]:
     """Each partition's own cells, and its neighbourhood, registered alone: of each, the best
     hypothesis that puts them elsewhere than every partition's transform does (the rivals of
@@ -445,11 +452,16 @@ def relocation_rivals(
     place from the twin are the ones the wrong placement left to other partitions or to none.
     Those lie beside the partition's cells (a part is a contiguous stretch of the run), so its
     *neighbourhood* is registered too: the occupied cells within :data:`NEIGHBOURHOOD_RADIUS`
-    of its cells. :func:`~brokenness.measure.settle.settle` then judges every rival by the
-    usual count, and by the free space.
+    of its cells. Given the map's free space ``free``
+    (:func:`~brokenness.measure.evidence.free_space` of ``found``), its cells are also placed
+    at every translation at the rotations of their hypotheses, and the placement that
+    explains them about as well and whose free space crosses the reference's walls least is
+    a rival too (:func:`~brokenness.measure.placement.free_placement`).
+    :func:`~brokenness.measure.settle.settle` then judges every rival by the usual count, and
+    by the free space.
     """
     search = _Search.of(context, registrar, reference)
-    return _relocations(search, found, NEIGHBOURHOOD_RADIUS, which)
+    return _relocations(search, found, NEIGHBOURHOOD_RADIUS, which, free)
 
 
 def _relocations(
@@ -457,24 +469,45 @@ def _relocations(
     found: list[Found],
     radius: int | None = None,
     which: Sequence[int] | None = None,
+    free: FreeSpace | None = None,
 ) -> list[RigidTransform]:
     """:func:`relocation_rivals` with its search made, with the neighbourhood of ``radius``
-    cells of each partition too (``None``: its own cells alone). None for a lone partition:
-    its cells are what the first step registered."""
+    cells of each partition too (``None``: its own cells alone), and, given the map's free
+    space ``free`` (:func:`~brokenness.measure.evidence.free_space` of ``found``), the
+    placement of each partition's cells that explains them about as well and whose free
+    space crosses the reference's walls least
+    (:func:`~brokenness.measure.placement.free_placement`). None for a lone partition: its
+    cells are what the first step registered."""
     if len(found) < 2:
         return []
-    sets: list[NDArray[np.intp]] = []
-    for j in range(len(found)) if which is None else which:
-        sets.append(found[j].members)
-        if radius is not None:
-            sets.append(_neighbourhood(found[j].members, search, radius))
     out: list[RigidTransform] = []
-    for members in sets:
+    coarse: CoarseAgreement | None = None
+    for j in range(len(found)) if which is None else which:
         if exhausted(search.registrar):
             break
-        elsewhere = search.elsewhere(found, members)
+        members = found[j].members
+        candidates = search.hypotheses(found, members)
+        elsewhere = search.best_of(candidates, members)
         if elsewhere is not None:
             out.append(elsewhere)
+        if free is not None and members.size >= search.settings.min_cells:
+            if coarse is None:
+                coarse = CoarseAgreement.of(search.index, search.settings.threshold)
+            placed = free_placement(
+                take_rows(search.points, members),
+                found[j].transform,
+                [c.transform.rotation for c in candidates],
+                free.points(free.owner == j),
+                search.index,
+                coarse,
+                search.settings,
+            )
+            if placed is not None:
+                out.append(placed)
+        if radius is not None and not exhausted(search.registrar):
+            elsewhere = search.elsewhere(found, _neighbourhood(members, search, radius))
+            if elsewhere is not None:
+                out.append(elsewhere)
     return out
 
 
@@ -652,11 +685,22 @@ class _Search:
     def elsewhere(self, found: list[Found], members: NDArray[np.intp]) -> RigidTransform | None:
         """The best hypothesis of ``members`` registered alone that puts them elsewhere than
         every partition's transform does (``None`` if there is none)."""
+        return self.best_of(self.hypotheses(found, members), members)
+
+    def hypotheses(self, found: list[Found], members: NDArray[np.intp]) -> list[Candidate]:
+        """The hypotheses of ``members`` registered alone that put them elsewhere than every
+        partition's transform does (none for fewer than ``min_cells`` cells)."""
         if members.size < self.settings.min_cells:
-            return None
+            return []
         cells = np.zeros(self.points.shape[0], dtype=bool)
         cells[members] = True
-        candidates = self._new_hypotheses(found, cells)
+        return self._new_hypotheses(found, cells)
+
+    def best_of(
+        self, candidates: list[Candidate], members: NDArray[np.intp]
+    ) -> RigidTransform | None:
+        """Of ``candidates`` (hypotheses of ``members``), the one that aligns the most of
+        ``members`` best, refined (``None`` if there is none)."""
         if not candidates:
             return None
         best = best_hypothesis(

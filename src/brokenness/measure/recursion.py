@@ -30,8 +30,10 @@ The recursion, for a map M and a reference R::
     recover again (and the steps after it) while new partitions are found
     relocate: each partition whose free space does not show that it is in place (it
         crosses the reference's walls too often, or too little of it is seen), its cells
-        and their neighbourhood registered alone; the best hypotheses offered as rivals
-        to the settle step (taken on agreement, or on free space that fits)
+        and their neighbourhood registered alone, and its cells placed at every
+        translation at those hypotheses' rotations (measure.placement); the best
+        hypotheses, and the placement whose free space fits best, offered as rivals to
+        the settle step (taken on agreement, or on free space that fits)
     measured only if the map's free space does not cross the reference's walls
         (measure.evidence): else not the same place, no degree
 
@@ -446,7 +448,7 @@ def _relocated(
     owned = free_space(found, points, clear, index)
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
-    rivals = relocation_rivals(found, context, registrar, whole, which)
+    rivals = relocation_rivals(found, context, registrar, whole, which, owned)
     if not rivals:
         return found, evidence
     moved = settle(found, points, index, settings, rivals, refits=False, clear=clear, owned=owned)

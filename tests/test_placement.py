@@ -1,0 +1,110 @@
+"""Where else a partition's cells fit (:mod:`brokenness.measure.placement`).
+
+Two rooms of the same shape in a reference, one of them split by a wall: a map of the
+unsplit room fits both, and only its free space tells them apart. And the coarse count that
+lets the search try every translation must never fall below the count at full resolution,
+or a placement that explains enough cells could be missed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _breaking import SETTINGS
+
+from brokenness import OccupancyMap, RigidTransform
+from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.evidence import ClearFree, free_space
+from brokenness.measure.partitions import Found
+from brokenness.measure.placement import CoarseAgreement, coarse_counts, free_placement
+
+
+def _outline(states: np.ndarray, top: int, left: int, bottom: int, right: int) -> None:
+    states[top : bottom + 1, [left, right]] = OCCUPIED
+    states[[top, bottom], left : right + 1] = OCCUPIED
+
+
+def _reference(split: bool) -> OccupancyMap:
+    """Free space with two 61 x 71-cell rooms; the right one split by a wall if ``split``."""
+    states = np.full((150, 270), FREE, np.int8)
+    _outline(states, 30, 30, 90, 100)  # room A
+    _outline(states, 30, 170, 90, 240)  # room B
+    if split:
+        states[30:91, 205] = OCCUPIED
+    return OccupancyMap(states, 0.05)
+
+
+def _room_map() -> OccupancyMap:
+    """The room alone, free inside, unknown around."""
+    states = np.full((90, 100), UNKNOWN, np.int8)
+    states[10:71, 10:81] = FREE
+    _outline(states, 10, 10, 70, 80)
+    return OccupancyMap(states, 0.05)
+
+
+AT_A = RigidTransform(0.0, 20.0, 20.0)
+AT_B = RigidTransform(0.0, 160.0, 20.0)
+
+
+def _placement(reference: OccupancyMap, held_at: RigidTransform) -> RigidTransform | None:
+    room = _room_map()
+    index = ReferenceIndex.build(reference)
+    points = cell_points(room.occupied)
+    found = [Found(held_at, np.arange(points.shape[0]), 1.0, 0.0)]
+    free = free_space(found, points, ClearFree(room, SETTINGS.threshold), index)
+    coarse = CoarseAgreement.of(index, SETTINGS.threshold)
+    mine = free.points(free.owner == 0)
+    return free_placement(points, held_at, [], mine, index, coarse, SETTINGS)
+
+
+def _at(placement: RigidTransform, room: RigidTransform) -> bool:
+    """Whether ``placement`` puts the room's walls on those of ``room``'s placement (the room
+    is symmetric: turned by 180 degrees about its centre it is the same room)."""
+    centre = np.array([[45.0, 40.0]])
+    moved, target = placement.apply(centre)[0], room.apply(centre)[0]
+    turn = abs(np.degrees(placement.rotation)) % 180.0
+    return bool(np.hypot(*(moved - target)) <= 1.5 and min(turn, 180.0 - turn) <= 1.0)
+
+
+def test_the_room_whose_free_space_fits_is_found_from_its_twin() -> None:
+    placement = _placement(_reference(split=True), held_at=AT_B)
+    assert placement is not None
+    assert _at(placement, AT_A)
+
+
+def test_the_right_room_is_kept() -> None:
+    # held in the room that fits, no other placement crosses fewer walls
+    assert _placement(_reference(split=True), held_at=AT_A) is None
+
+
+def test_twins_that_free_space_cannot_tell_apart_are_left_alone() -> None:
+    assert _placement(_reference(split=False), held_at=AT_B) is None
+
+
+@pytest.mark.parametrize("degrees", [0.0, 17.0, 90.0, 203.5])
+def test_coarse_counts_are_never_below_full_resolution(
+    corner: OccupancyMap, corner_index: ReferenceIndex, degrees: float
+) -> None:
+    threshold = SETTINGS.threshold
+    coarse = CoarseAgreement.of(corner_index, threshold)
+    assert coarse.pool == 4  # (pool - 1) / 2 < threshold
+    # a wall-rich piece of the corner, as a partition's cells
+    points = cell_points(corner.occupied[100:260, 120:300]) + [120.0, 100.0]
+    angle = np.radians(degrees)
+    ((counts, placement),) = coarse_counts(points, [angle], coarse)
+    # the highest coarse counts (where the bound matters) and a spread of others
+    order = np.argsort(counts, axis=None, kind="stable")[::-1]
+    picked = np.concatenate([order[:12], order[12 :: max(1, order.size // 40)]])
+    steps = np.arange(coarse.pool + 1)  # the translations a count stands for
+    checked = 0
+    for flat in picked.tolist():
+        r, q = divmod(flat, counts.shape[1])
+        lowest = placement(r, q)
+        for dy in steps:
+            for dx in steps:
+                t = RigidTransform(angle, lowest.tx + dx, lowest.ty + dy)
+                fine = np.count_nonzero(corner_index.occupied_agreement(t.apply(points), threshold))
+                assert fine <= counts[r, q] + 1e-3
+                checked += int(fine > 0)
+    assert checked > 100  # the bound was tested where cells agree
