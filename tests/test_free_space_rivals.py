@@ -19,6 +19,7 @@ from _breaking import SETTINGS, break_map, median_error
 from brokenness import OccupancyMap, RigidTransform
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
+from brokenness.measure.context import MapContext
 from brokenness.measure.evidence import (
     MAP_RATIO,
     ClearFree,
@@ -27,7 +28,11 @@ from brokenness.measure.evidence import (
     free_space,
 )
 from brokenness.measure.partitions import Found
+from brokenness.measure.recovery import relocation_rivals
 from brokenness.measure.settle import settle
+from brokenness.measure.support import occupied_around
+from brokenness.measure.views import prepared_reference
+from brokenness.registration.methods import make_registrar
 
 #: Room A's bump in the map (cells, x and y).
 BUMP = (0.0, 30.0)
@@ -133,3 +138,22 @@ def test_a_partition_bound_is_the_map_bound_of_its_counts() -> None:
     # 4000 cells at a tenth of chance: in place; 50 cells (5 on walls by chance) cannot show
     # it, even with none on walls; no cell at all cannot either
     assert counts.doubtful(6.0) == [1, 2]
+
+
+def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None:
+    # step 8: A's cells placed at every translation fit at B's place and at home alike, and
+    # the free space picks home: offered after the best hypothesis of A's cells registered
+    # alone (and before that of their neighbourhood)
+    broken, points, in_a, found, truth, index = case
+    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
+    whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
+    clear = ClearFree(broken, SETTINGS.threshold)
+    around = occupied_around(points, broken.shape)
+    context = MapContext(points, broken, index, SETTINGS, around, clear)
+    owned = free_space(found, points, clear, index)
+
+    registered = relocation_rivals(found, context, registrar, whole, [1])
+    offered = relocation_rivals(found, context, registrar, whole, [1], owned)
+    assert len(offered) == len(registered) + 1
+    assert offered[:1] + offered[2:] == registered
+    assert median_error(offered[1], truth, points[in_a]) < 1.0

@@ -16,7 +16,8 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
 :func:`free_placement`, for one partition:
 
 1. takes the rotations: the partition's own and those of the hypotheses of its cells
-   registered alone;
+   registered alone, of those that turn no cell by half a coarse cell against an earlier
+   one the first only (the refinement corrects the rest);
 2. at each rotation counts, for every translation, the partition's cells that agree, on a
    coarse grid (:class:`CoarseAgreement`, ``2 threshold`` cells a side or coarser): the
    reference's agreement mask (cells within ``threshold`` of a wall), max-pooled and dilated
@@ -55,8 +56,8 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
+from .._points import squared_norms
 from ..masking import ReferenceIndex
-from ..masking.distance import within
 from ..transform import RigidTransform
 from .evidence import Contradiction, chance_rate, landing
 from .options import Settings
@@ -87,10 +88,6 @@ PEAKS = 16
 #: placement to the cell before it is refined.
 FINE_SAMPLE = 256
 
-#: Rotations closer than this (radians) are one rotation: the hypotheses of one registration
-#: differ by the refinement's sub-degree corrections.
-SAME_ANGLE = math.radians(0.5)
-
 
 @dataclass(frozen=True, eq=False)
 class CoarseAgreement:
@@ -112,20 +109,21 @@ class CoarseAgreement:
 
     @classmethod
     def of(cls, index: ReferenceIndex, threshold: float) -> CoarseAgreement:
-        """The coarse agreement grid of a reference (a pass over it, in bands of rows) at the
-        agreement ``threshold``."""
-        h, w = index.occupied_distance.shape
+        """The coarse agreement grid of a reference at the agreement ``threshold``, from its
+        occupied cells (a cell within ``threshold`` of one, Manhattan, is one of the
+        cells around it; the cost follows the occupied cells, not the grid)."""
+        h, w = index.reference.shape
         pool = max(_pool(threshold), math.ceil(max(h, w) / COARSE_SIDE))
         gh, gw = -(-h // pool), -(-w // pool)
         grid = np.zeros((gh, gw), dtype=np.uint8)
-        band = pool * max(1, 4096 // pool)  # rows per band: bounded temporaries
-        for r0 in range(0, h, band):
-            near = within(index.occupied_distance[r0 : r0 + band], threshold)
-            rows = near.shape[0]
-            padded = np.zeros((-(-rows // pool) * pool, gw * pool), dtype=bool)
-            padded[:rows, :w] = near
-            blocks = padded.reshape(-1, pool, gw, pool).any(axis=(1, 3))
-            grid[r0 // pool : r0 // pool + blocks.shape[0]] = blocks
+        x = index.occupied_points[:, 0].astype(np.intp)
+        y = index.occupied_points[:, 1].astype(np.intp)
+        reach = math.floor(threshold)
+        for dy in range(-reach, reach + 1):
+            for dx in range(-(reach - abs(dy)), reach - abs(dy) + 1):
+                cx, cy = x + dx, y + dy
+                on = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
+                grid[cy[on] // pool, cx[on] // pool] = 1
         dilated = grid.copy()
         dilated[:-1] |= grid[1:]
         dilated[:, :-1] |= dilated[:, 1:].copy()
@@ -175,7 +173,11 @@ def free_placement(
     own = int(np.count_nonzero(index.occupied_agreement(transform.apply(members), threshold)))
     p0 = index.chance_agreement(threshold)
     floor = own - z * math.sqrt(members.shape[0] * p0 * (1.0 - p0))
-    peaks = _coarse_peaks(members, _distinct([transform.rotation, *angles]), coarse, floor)
+    # rotations that move no cell by half a coarse cell against each other are one
+    radius = float(np.sqrt(squared_norms(members - members.mean(axis=0)).max()))
+    same = coarse.pool / (2.0 * max(radius, 1.0))
+    turns = _distinct([transform.rotation, *angles], same)
+    peaks = _coarse_peaks(members, turns, coarse, floor)
     chance = chance_rate(index)
     own_rate = _upper_rate(free, transform, index, chance, z)
     best, best_rate = None, own_rate
@@ -216,11 +218,11 @@ def _fine(
     return RigidTransform(placement.rotation, placement.tx + dx, placement.ty + dy)
 
 
-def _distinct(angles: Sequence[float]) -> list[float]:
-    """``angles`` (radians) without those within :data:`SAME_ANGLE` of an earlier one."""
+def _distinct(angles: Sequence[float], same: float) -> list[float]:
+    """``angles`` (radians) without those within ``same`` of an earlier one."""
     kept: list[float] = []
     for a in angles:
-        if all(abs(math.remainder(a - b, math.tau)) >= SAME_ANGLE for b in kept):
+        if all(abs(math.remainder(a - b, math.tau)) >= same for b in kept):
             kept.append(float(a))
     return kept
 
