@@ -25,9 +25,11 @@ def _outline(states: np.ndarray, top: int, left: int, bottom: int, right: int) -
     states[[top, bottom], left : right + 1] = OCCUPIED
 
 
-def _reference(split: bool) -> OccupancyMap:
-    """Free space with two 61 x 71-cell rooms; the right one split by a wall if ``split``."""
-    states = np.full((150, 270), FREE, np.int8)
+def _reference(split: bool, side: int = 0) -> OccupancyMap:
+    """Free space with two 61 x 71-cell rooms; the right one split by a wall if ``split``
+    (unknown around it up to ``side`` cells a side)."""
+    states = np.full((max(150, side), max(270, side)), UNKNOWN, np.int8)
+    states[:150, :270] = FREE
     _outline(states, 30, 30, 90, 100)  # room A
     _outline(states, 30, 170, 90, 240)  # room B
     if split:
@@ -67,8 +69,14 @@ def _at(placement: RigidTransform, room: RigidTransform) -> bool:
     return bool(np.hypot(*(moved - target)) <= 1.5 and min(turn, 180.0 - turn) <= 1.0)
 
 
-def test_the_room_whose_free_space_fits_is_found_from_its_twin() -> None:
-    placement = _placement(_reference(split=True), held_at=AT_B)
+@pytest.mark.parametrize("side", [0, 2400])
+def test_the_room_whose_free_space_fits_is_found_from_its_twin(side: int) -> None:
+    # 2400 cells a side: coarse cells of 7, searched to the cell in two steps
+    reference = _reference(split=True, side=side)
+    assert CoarseAgreement.of(ReferenceIndex.build(reference), SETTINGS.threshold).pool == (
+        7 if side else 4
+    )
+    placement = _placement(reference, held_at=AT_B)
     assert placement is not None
     assert _at(placement, AT_A)
 
