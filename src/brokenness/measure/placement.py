@@ -67,12 +67,14 @@ __all__ = ["PEAKS", "CoarseAgreement", "coarse_counts", "free_placement"]
 
 
 def _pool(threshold: float) -> int:
-    """Side of a coarse cell, in cells of the working grid, at least: the middle of a coarse
-    cell, where the refinement starts, is then less than the agreement ``threshold`` from
-    each translation it stands for along each axis (``(pool - 1) / 2 < threshold``; 4 cells
-    at the default 2). A pool of 6 (from the refinement's gate, the loose threshold,
-    instead) lost three of the seven maps of the realistic benchmark this search makes all
-    true: coarser counts let more placements pass, and the refinement started farther off."""
+    """Side of a coarse cell, in cells of the working grid, at least: the largest at which
+    the middle of a coarse cell is less than the agreement ``threshold`` from each
+    translation it stands for along each axis (``(pool - 1) / 2 < threshold``; 4 cells at
+    the default 2), so that a count does not stand for placements a wall's agreement band
+    tells apart. A pool of 6 (from the refinement's gate, the loose threshold, instead) lost
+    three of the seven maps of the realistic benchmark this search first made all true:
+    coarser counts let more placements reach the floor, and the refinement started farther
+    off."""
     return max(1, math.ceil(2.0 * threshold))
 
 
