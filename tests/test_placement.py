@@ -17,7 +17,12 @@ from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
 from brokenness.measure.evidence import ClearFree, free_space
 from brokenness.measure.partitions import Found
-from brokenness.measure.placement import CoarseAgreement, coarse_counts, free_placement
+from brokenness.measure.placement import (
+    CoarseAgreement,
+    _best_shift,
+    coarse_counts,
+    free_placement,
+)
 
 
 def _outline(states: np.ndarray, top: int, left: int, bottom: int, right: int) -> None:
@@ -116,3 +121,44 @@ def test_coarse_counts_are_never_below_full_resolution(
                 assert fine <= counts[r, q] + 1e-3
                 checked += int(fine > 0)
     assert checked > 100  # the bound was tested where cells agree
+
+
+@pytest.mark.parametrize("threshold", [1.0, 2.0, 3.5])
+def test_coarse_counts_are_never_below_full_resolution_at_the_edges(threshold: float) -> None:
+    # walls along the reference's first rows and columns, cells moved onto and past them
+    rng = np.random.default_rng(7)
+    states = np.full((120, 150), FREE, np.int8)
+    states[rng.integers(0, 6, 400), rng.integers(0, 150, 400)] = OCCUPIED
+    states[rng.integers(0, 120, 400), rng.integers(0, 6, 400)] = OCCUPIED
+    index = ReferenceIndex.build(OccupancyMap(states, 0.05))
+    coarse = CoarseAgreement.of(index, threshold)
+    points = np.unique(rng.integers(0, 40, (300, 2)), axis=0).astype(np.float64)
+    for angle in (0.0, 0.3, 2.0):
+        ((counts, placement),) = coarse_counts(points, [angle], coarse)
+        origin = placement(0, 0)  # a count's translations: placement(r, q) + [0, pool]
+        checked = 0
+        # the cells' lowest corner moved to around the reference's first cells
+        low = RigidTransform(angle).apply(points).min(axis=0)
+        for tx, ty in rng.uniform(-12.0, 10.0, (400, 2)) - low:
+            r = int((ty - origin.ty) // coarse.pool)
+            q = int((tx - origin.tx) // coarse.pool)
+            t = RigidTransform(angle, tx, ty)
+            fine = np.count_nonzero(index.occupied_agreement(t.apply(points), threshold))
+            assert 0 <= r < counts.shape[0] and 0 <= q < counts.shape[1]
+            assert fine <= counts[r, q] + 1e-3
+            checked += int(fine > 0)
+        assert checked > 100
+
+
+def test_the_cell_search_lands_on_a_wall_between_two_equal_ones() -> None:
+    # a line of cells midway between two parallel walls: shifted up or down it agrees alike,
+    # and the middle of all the best shifts (their mean) would be where it started, on
+    # neither wall
+    states = np.full((100, 100), FREE, np.int8)
+    states[40, 10:90] = OCCUPIED
+    states[52, 10:90] = OCCUPIED
+    index = ReferenceIndex.build(OccupancyMap(states, 0.05))
+    line = np.column_stack([np.arange(30.0, 70.0), np.full(40, 46.0)])
+    start = _best_shift(RigidTransform(), line, index, 2.0, np.arange(-8, 9))
+    moved = start.apply(line)
+    assert np.count_nonzero(index.occupied_agreement(moved, 2.0)) == line.shape[0]

@@ -22,8 +22,9 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
    coarse grid (:class:`CoarseAgreement`, ``2 threshold`` cells a side or coarser): the
    reference's agreement mask (cells within ``threshold`` of a wall), max-pooled and dilated
    by one coarse cell, correlated with the cells' counts per coarse cell. The coarse count
-   is never below the count at full resolution of any translation it stands for, so no
-   placement that explains enough cells is missed;
+   is never below the count at full resolution of any translation it stands for, so a
+   placement that explains enough cells is not lost to the coarse grid (only to the limit
+   of :data:`PEAKS` below);
 3. keeps the coarse placements that are local maxima and count at least the *floor*: the
    cells the partition's own transform makes agree, less ``z`` standard deviations of
    chance (``z sqrt(n p0 (1 - p0))`` for ``n`` cells and chance agreement ``p0``, the
@@ -88,8 +89,9 @@ COARSE_SIDE = 384
 #: and the free-space count are the cost of this step.
 PEAKS = 16
 
-#: Cells of a partition (at most, by a fixed stride) whose agreement places a coarse
-#: placement to the cell before it is refined.
+#: Cells of a partition whose agreement places a coarse placement to the cell before it is
+#: refined: every ``n // FINE_SAMPLE``-th of its ``n`` cells (256 to 511 of them, or all of
+#: fewer).
 FINE_SAMPLE = 256
 
 
@@ -99,11 +101,14 @@ class CoarseAgreement:
 
     Attributes
     ----------
-    grid : ndarray of float32, shape (H', W')
-        1 where some cell of the coarse cell, or of the next coarse cell along either axis,
-        is within ``threshold`` of an occupied reference cell (max-pooled, then dilated
-        toward higher indices by one coarse cell: a translation that is not a multiple of
-        the pool moves a cell into the next coarse cell at most).
+    grid : ndarray of float32, shape (H' + 1, W' + 1)
+        1 where some cell of the coarse cell, or of the next coarse cell along either axis
+        or both, is within ``threshold`` of an occupied reference cell (max-pooled, then
+        dilated toward higher indices by one coarse cell: a translation that is not a
+        multiple of the pool moves a cell into the next coarse cell at most). Coarse cell
+        ``[i, j]`` holds the working grid's rows ``pool (i - 1)`` to ``pool i - 1`` and its
+        columns ``pool (j - 1)`` to ``pool j - 1``: the first row and column lie before the
+        reference.
     pool : int
         Cells of the working grid per coarse cell, along each axis.
     """
@@ -128,8 +133,13 @@ class CoarseAgreement:
                 cx, cy = x + dx, y + dy
                 on = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
                 grid[cy[on] // pool, cx[on] // pool] = 1
-        dilated = grid.copy()
-        dilated[:-1] |= grid[1:]
+        # one coarse row and column before the reference (a cell moved to just before its
+        # first coarse cell may land in it), then each coarse cell or the next along
+        # either axis
+        padded = np.zeros((gh + 1, gw + 1), dtype=np.uint8)
+        padded[1:, 1:] = grid
+        dilated = padded.copy()
+        dilated[:-1] |= padded[1:]
         dilated[:, :-1] |= dilated[:, 1:].copy()
         return cls(dilated.astype(np.float32), pool)
 
@@ -214,10 +224,10 @@ def _fine(
     added along each axis), the middle of those that make the most of ``sample`` agree (a
     wall agrees over a band ``2 threshold + 1`` cells wide, so several translations do).
 
-    A pool wider than that band (a reference of more than :data:`COARSE_SIDE` coarse cells
-    of ``2 threshold`` a side) is searched in steps of the band first, then cell by cell
-    around the best step: a wall's band is not stepped over, and the lookups stay about as
-    many as at the smallest pool."""
+    A pool wider than that band (a reference so large that the coarse grid would be over
+    :data:`COARSE_SIDE` cells a side; at the default threshold, over 1920 cells) is searched
+    in steps of the band first, then cell by cell around the best step: a wall's band is
+    not stepped over, and the lookups grow with ``(pool / band) ** 2`` only."""
     band = 2 * math.floor(threshold) + 1
     if pool <= band:
         return _best_shift(placement, sample, index, threshold, np.arange(-pool, 2 * pool + 1))
@@ -232,14 +242,18 @@ def _best_shift(
     threshold: float,
     steps: NDArray[np.int64],
 ) -> RigidTransform:
-    """``placement`` shifted by the middle of the shifts (``steps`` along each axis) that
-    make the most of ``sample`` agree."""
+    """``placement`` shifted by the middle (the medoid, Manhattan) of the shifts (``steps``
+    along each axis) that make the most of ``sample`` agree."""
     offsets = steps.astype(np.float64)
     shifts = np.stack(np.meshgrid(offsets, offsets), axis=-1).reshape(-1, 2)  # (x, y) rows
     moved = placement.apply(sample)
     agree = index.occupied_agreement((moved[None] + shifts[:, None]).reshape(-1, 2), threshold)
     counts = agree.reshape(shifts.shape[0], -1).sum(axis=1)
-    dx, dy = shifts[counts == counts.max()].mean(axis=0)
+    tied = shifts[counts == counts.max()]
+    # the middle of the tied shifts: the one nearest the others (the mean of two separate
+    # groups, two walls' bands, could lie where nothing agrees)
+    spread = np.abs(tied[:, None] - tied[None]).sum(axis=(1, 2))
+    dx, dy = tied[int(np.argmin(spread))]
     return RigidTransform(placement.rotation, placement.tx + dx, placement.ty + dy)
 
 
@@ -262,13 +276,17 @@ def _coarse_peaks(
     ``angles``, highest count first (ties: first angle, then row-major order)."""
     found: list[tuple[float, int, int, RigidTransform]] = []
     for k, (counts, placement) in enumerate(coarse_counts(members, angles, coarse)):
-        # local maxima (3 x 3 coarse cells) that reach the floor, highest first; of those
-        # within 2 coarse cells of a higher one (a plateau of equal counts), none
+        # local maxima (3 x 3 coarse cells) that reach the floor (whole counts; at least one
+        # cell), highest first; none within 2 coarse cells of one kept before it (a plateau
+        # of equal counts is one placement), and at most PEAKS an angle (no more are refined)
         top = cv2.dilate(counts, np.ones((3, 3), np.uint8))
-        rows, cols = np.nonzero((counts >= top) & (counts >= floor - 0.5))
+        least = max(1, math.ceil(floor))
+        rows, cols = np.nonzero((counts >= top) & (counts >= least))
         order = np.argsort(-counts[rows, cols], kind="stable")  # highest first, row-major
         kept: list[tuple[int, int]] = []
         for r, q in zip(rows[order].tolist(), cols[order].tolist(), strict=True):
+            if len(kept) == PEAKS:
+                break
             if any(abs(r - a) <= 2 and abs(q - b) <= 2 for a, b in kept):
                 continue
             kept.append((r, q))
@@ -290,6 +308,10 @@ def coarse_counts(
     ``pool`` cells to it along each axis.
     """
     pool, grid = coarse.pool, coarse.grid
+    # single precision sums whole counts to well within a half below 2**16 cells; beyond,
+    # double
+    dtype = np.float32 if members.shape[0] < 2**16 else np.float64
+    grid = grid.astype(dtype, copy=False)
     templates = []
     for angle in angles:
         c, s = math.cos(angle), math.sin(angle)
@@ -300,7 +322,7 @@ def coarse_counts(
         # covers)
         cells = np.floor((turned - low + 0.5) / pool).astype(np.intp)
         shape = (int(cells[:, 1].max()) + 1, int(cells[:, 0].max()) + 1)
-        template = np.zeros(shape, dtype=np.float32)
+        template = np.zeros(shape, dtype=dtype)
         np.add.at(template, (cells[:, 1], cells[:, 0]), 1.0)
         templates.append((angle, low, template))
     if not templates:
@@ -331,8 +353,11 @@ def _placement(
     for."""
 
     def placement(r: int, q: int) -> RigidTransform:
-        tx = (q - w + 1) * pool - low[0]
-        ty = (r - h + 1) * pool - low[1]
+        # the template's coarse cell (0, 0) on the grid's coarse cell (q - w + 1, r - h + 1),
+        # whose first working cell is pool (q - w) (the grid's first column lies before the
+        # reference)
+        tx = (q - w) * pool - low[0]
+        ty = (r - h) * pool - low[1]
         return RigidTransform(angle, tx, ty)
 
     return placement
