@@ -194,8 +194,8 @@ class FreeSpace:
 def chance_rate(index: ReferenceIndex) -> float:
     """``q``: the share of the reference's known cells that are occupied, the rate at which
     free space dropped at random lands on walls (``0`` for a reference that knows nothing)."""
-    n_known = index.known_count
-    return float(np.count_nonzero(index.occupied)) / n_known if n_known else 0.0
+    n_known = index.known_count  # the occupied cells are counted in its occupied_points
+    return float(index.occupied_points.shape[0]) / n_known if n_known else 0.0
 
 
 def landing(

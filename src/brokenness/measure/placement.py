@@ -57,7 +57,7 @@ import numpy as np
 import scipy.fft
 from numpy.typing import NDArray
 
-from .._points import squared_norms
+from .._points import point_norms, squared_norms
 from ..masking import ReferenceIndex
 from ..transform import RigidTransform
 from .evidence import Contradiction, chance_rate, landing
@@ -184,7 +184,8 @@ def free_placement(
     if members.shape[0] < settings.min_cells:
         return None
     threshold, z = settings.threshold, settings.significance
-    own = int(np.count_nonzero(index.occupied_agreement(transform.apply(members), threshold)))
+    here = transform.apply(members)  # the partition's own placement
+    own = int(np.count_nonzero(index.occupied_agreement(here, threshold)))
     p0 = index.chance_agreement(threshold)
     floor = own - z * math.sqrt(members.shape[0] * p0 * (1.0 - p0))
     # rotations that move no cell by half a coarse cell against each other are one
@@ -202,9 +203,7 @@ def free_placement(
         moved = refined.apply(members)
         if np.count_nonzero(index.occupied_agreement(moved, threshold)) < floor:
             continue
-        if float(np.mean(np.linalg.norm(moved - transform.apply(members), axis=1))) <= (
-            settings.loose
-        ):
+        if float(np.mean(point_norms(moved - here))) <= settings.loose:
             continue  # the partition's own placement
         rate = _upper_rate(free, refined, index, chance, z)
         if rate < best_rate:
