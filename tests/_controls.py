@@ -17,6 +17,11 @@ same thing:
 - :func:`broken_simulated_maps`: a simulated building broken into 4 partitions whose free
   space overlaps in the map's frame (case ``sim_d3_s17`` of the benchmark's fresh set): its
   parts are all found, and the contradiction test refuses the degree ("not the same place?").
+- :func:`lost_part_simulated_maps`: a simulated building broken into 7 partitions (case
+  ``sim_d6_s23`` of the benchmark's held-out sets) whose smallest part (5 % of the cells)
+  loses most of its cells to the partitions found before it; what is left of it is
+  scattered among other parts' suspects, and only the regions around them, registered with
+  all their cells, give its transform (session 22).
 - :func:`twin_placed_simulated_maps`: two simulated buildings (cases ``sim_d4_s28`` and
   ``sim_d7_s10`` of the held-out sets) in which a small part (6-7 % of the cells) was held at
   a turned twin of its place until the settled partitions were registered alone again, with
@@ -49,6 +54,7 @@ __all__ = [
     "Control",
     "broken_real_log_maps",
     "broken_simulated_maps",
+    "lost_part_simulated_maps",
     "negative_controls",
     "orebro_map",
 ]
@@ -151,6 +157,13 @@ def broken_simulated_maps() -> list[BrokenCase]:
     """A simulated building at 5 cm, degree 3, in its own frame (see the module docstring)."""
     case = Case("sim", 3, 17, 0.05, 0.05, "run")
     return [_drawn("simulated degree 3 (seed 17, 5 cm, own frame)", case)]
+
+
+def lost_part_simulated_maps() -> list[BrokenCase]:
+    """A simulated building of degree 6 in its own frame, against the run at 0.1 m (see the
+    module docstring)."""
+    case = Case("sim", 6, 23, 0.05, 0.1, "run")
+    return [_drawn("simulated degree 6 (seed 23, 5 cm, run at 0.1 m)", case)]
 
 
 def twin_placed_simulated_maps() -> list[BrokenCase]:

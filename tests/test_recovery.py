@@ -209,3 +209,51 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corne
     turned = RigidTransform(np.pi / 2).compose(RigidTransform(0.0, *(-centre))).compose(right_t)
     wrong = [*found, Found(RigidTransform(0.0, *centre).compose(turned), part.members, 1.0, 0.0)]
     assert not clears(before, wrong, context)
+
+
+def test_suspect_regions_group_near_suspects_and_take_every_cell_around():
+    reach = recovery.REGION_REACH
+    rng = np.random.default_rng(3)
+
+    def square(x0: int, y0: int, side: int, n: int = 400) -> np.ndarray:
+        return np.column_stack([rng.integers(x0, x0 + side, n), rng.integers(y0, y0 + side, n)])
+
+    big = np.vstack([square(0, 0, 40, 200), square(40 + reach, 0, 40, 200)])  # one group
+    small = square(20 * reach, 0, 40, 300)  # its own group
+    tiny = square(0, 20 * reach, 10, 20)  # too few suspects for a region
+    beside = square(0, 40, reach // 2)  # not suspects, within reach of ``big``
+    far = square(0, 40 + 3 * reach, 40)  # not suspects, far from every suspect
+    points = np.vstack([big, small, tiny, beside, far]).astype(np.float64) + 7.0
+    suspect = np.zeros(points.shape[0], bool)
+    suspect[: 400 + 300 + 20] = True
+    regions = recovery.suspect_regions(points, suspect, min_cells=100)
+    assert len(regions) == 2  # the tiny group holds fewer than min_cells suspects
+    first, second = regions
+    assert first[:400].all() and not first[400:720].any()  # the larger group first
+    assert first[720:1120].all()  # with the cells within reach of it
+    assert not first[1120:].any() and not second[1120:].any()  # but not farther
+    assert second[400:700].all() and not second[:400].any()
+    assert recovery.suspect_regions(points, suspect, min_cells=800) == []
+
+
+def test_groups_leave_out_what_was_registered_already():
+    """A group that holds nearly every suspect was registered as the suspects, and a region
+    that holds nearly the whole map was registered by the recursion: neither again."""
+    rng = np.random.default_rng(4)
+    reach = recovery.REGION_REACH
+    near = rng.integers(0, 40, (300, 2))  # suspects, one group, and cells within reach:
+    around = np.column_stack([rng.integers(0, 40, 300), rng.integers(40, 40 + reach // 2, 300)])
+    far = rng.integers(0, 40, (1000, 2)) + [0, 40 + 3 * reach]  # far from them
+    points = np.vstack([near, around, far]).astype(np.float64)
+    suspect = np.zeros(points.shape[0], bool)
+    suspect[:300] = True
+    groups = recovery._groups(points, suspect, min_cells=100)
+    assert len(groups) == 1  # the region only: the group is every suspect
+    assert groups[0][:600].all() and not groups[0][600:].any()
+    # without the far cells the region is the whole map: nothing is left to register
+    assert recovery._groups(points[:600], suspect[:600], min_cells=100) == []
+    # a second group of suspects, far away: each group is a part of the suspects now
+    suspect[600:900] = True
+    groups = recovery._groups(points, suspect, min_cells=100)
+    assert len(groups) == 4
+    assert [int(g.sum()) for g in groups[::2]] == [300, 300]

@@ -24,8 +24,14 @@ the recursion:
 3. registers the suspects with the whole reference -- first only those in regions of
    suspects (at least :data:`DENSE_SHARE` of the cells around them are suspects: a lost
    partition is a region of them, the borders of the partitions found are lines of them),
-   then, if that finds nothing and the two differ, all of them -- and keeps the best
-   hypothesis that is not a partition already found;
+   then, if that finds nothing and the two differ, all of them; then, if that finds nothing
+   either, each group of suspects that could hold a partition, and the region around it
+   with all its cells (:func:`suspect_regions`: a small part that the partitions found
+   before it took most of leaves half of the suspects or less, mixed with the borders of
+   other parts, and its hypothesis is among neither set's, but the region around its
+   suspects holds its taken cells too; neither a group of nearly all the suspects nor a
+   region of nearly all the map, registered already, is registered again) -- and keeps
+   the best hypothesis that is not a partition already found;
 4. counts it as a new partition if the suspects it explains *coherently* (they agree under
    it, and so do at least :data:`SUPPORT_SHARE` of the cells around them: coincidences are
    scattered) pass the recursion's stopping rule on the suspects (``k >= n p0 + z sigma``
@@ -104,6 +110,7 @@ from .views import candidates_of, exhausted, moving_remainder, occupied_count
 __all__ = [
     "DENSE_SHARE",
     "NEIGHBOURHOOD_RADIUS",
+    "REGION_REACH",
     "SUPPORT_RADIUS",
     "SUPPORT_SHARE",
     "agreement_support",
@@ -112,6 +119,7 @@ __all__ = [
     "occupied_around",
     "recover",
     "relocation_rivals",
+    "suspect_regions",
     "taken_cells",
 ]
 
@@ -262,6 +270,68 @@ def neighbourhood_counts(
     return np.rint(summed.reshape(-1).take(flat)).astype(np.int64)  # flat: each cell's block
 
 
+#: Suspects within twice this many cells of each other form one group, and a group's region
+#: holds the occupied cells within this many cells of its suspects: the width of the support
+#: window (``2 SUPPORT_RADIUS``), counted on blocks of :data:`BLOCK` cells (see
+#: :func:`suspect_regions`).
+REGION_REACH = 2 * SUPPORT_RADIUS
+
+
+def suspect_regions(
+    points: NDArray[np.float64], suspect: NDArray[np.bool_], min_cells: int
+) -> list[NDArray[np.bool_]]:
+    """The regions of the map around groups of suspects, largest group first.
+
+    On blocks of :data:`BLOCK` cells, the blocks that hold a suspect are grown by
+    :data:`REGION_REACH` cells (rounded up to whole blocks); each 8-connected piece of what
+    they cover is a region, and the suspects in it a group. Every group of at least
+    ``min_cells`` suspects gives its region: all the occupied cells in it, not only the
+    suspects (the cells of a lost part that other partitions took by coincidence are not
+    suspects, but they tell its transform). The cost follows the cells and the pooled grid.
+
+    Returns
+    -------
+    list of ndarray of bool
+        One mask over ``points`` per region, in order of decreasing suspects (then of the
+        region's first block, row-major: deterministic).
+    """
+    if np.count_nonzero(suspect) < min_cells:
+        return []
+    reach = -(-REGION_REACH // BLOCK)
+    cols = points[:, 0].astype(np.intp) // BLOCK
+    rows = points[:, 1].astype(np.intp) // BLOCK
+    r0, c0 = int(rows.min()) - reach, int(cols.min()) - reach
+    rows, cols = rows - r0, cols - c0
+    shape = (int(rows.max()) + reach + 1, int(cols.max()) + reach + 1)
+    held = np.zeros(shape, np.uint8)
+    held[rows[suspect], cols[suspect]] = 1
+    grown = cv2.dilate(held, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8))
+    count, piece = cv2.connectedComponents(grown, connectivity=8)
+    of_cell = piece[rows, cols]
+    suspects = np.bincount(of_cell[suspect], minlength=count)
+    suspects[0] = 0  # outside every region
+    order = sorted(range(1, count), key=lambda g: (-suspects[g], g))
+    return [of_cell == g for g in order if suspects[g] >= min_cells]
+
+
+def _groups(
+    points: NDArray[np.float64], suspect: NDArray[np.bool_], min_cells: int
+) -> list[NDArray[np.bool_]]:
+    """The cells registered for a lost partition after the suspects: per region of
+    :func:`suspect_regions`, its suspects and all its cells, but not a group that holds
+    :data:`_SAME_SET` of the suspects (they were registered) nor a region that holds that
+    share of the map (the recursion registered it)."""
+    n_suspects, n = np.count_nonzero(suspect), points.shape[0]
+    groups = []
+    for region in suspect_regions(points, suspect, min_cells):
+        mine = suspect & region
+        if np.count_nonzero(mine) < _SAME_SET * n_suspects:
+            groups.append(mine)
+        if np.count_nonzero(region) < _SAME_SET * n:
+            groups.append(region)
+    return groups
+
+
 def _owner_counts(
     found: list[Found],
     owner: NDArray[np.intp],
@@ -402,6 +472,12 @@ def recover(
                 short.append(shortfall)
             if new is not None:
                 break
+        if new is None:  # the hypotheses of groups of suspects and of the regions around them
+            groups = _groups(points, suspect, min_cells)
+            if groups:
+                new, shortfall = search.lost_partition(found, suspect, groups)
+                if shortfall is not None:
+                    short.append(shortfall)
         rivals += [shortfall.transform for shortfall in short]
         grown, before = None, None
         for shortfall in short if new is None else ():  # counted over the whole map instead
@@ -582,11 +658,18 @@ class _Search:
         return self.context.settings
 
     def lost_partition(
-        self, found: list[Found], cells: NDArray[np.bool_]
+        self,
+        found: list[Found],
+        cells: NDArray[np.bool_],
+        sources: Sequence[NDArray[np.bool_]] = (),
     ) -> tuple[Found | None, _Shortfall | None]:
         """The partition that ``cells`` hide, if its hypothesis passes every test; else
         ``None`` and, if the hypothesis failed only the count (too few of ``cells`` agree
-        coherently for a new partition), the hypothesis and its rivals."""
+        coherently for a new partition), the hypothesis and its rivals.
+
+        The hypotheses are those of ``cells`` registered alone or, if ``sources`` are given
+        (masks over the map's cells), those of each source registered alone; they are
+        counted on ``cells`` either way."""
         settings = self.settings
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells or exhausted(self.registrar):
@@ -594,7 +677,11 @@ class _Search:
         pts = self.points
         left = np.flatnonzero(cells)
         left_points = take_rows(pts, left)
-        candidates = self._new_hypotheses(found, cells)
+        candidates: list[Candidate] = []
+        for source in sources or (cells,):
+            if exhausted(self.registrar):
+                break  # no registration once the budget is spent
+            candidates += self._new_hypotheses(found, cells, source)
         if not candidates:
             return None, None
         # the cells a hypothesis explains count only where the cells around agree under it
@@ -708,15 +795,21 @@ class _Search:
         )
         return None if best is None else best[0]
 
-    def _new_hypotheses(self, found: list[Found], cells: NDArray[np.bool_]) -> list[Candidate]:
-        """The hypotheses of ``cells`` registered alone (twice ``max_candidates``) that are not
-        a partition already found; none if too few of them are left to register."""
+    def _new_hypotheses(
+        self,
+        found: list[Found],
+        cells: NDArray[np.bool_],
+        source: NDArray[np.bool_] | None = None,
+    ) -> list[Candidate]:
+        """The hypotheses of ``source`` (default ``cells``) registered alone (twice
+        ``max_candidates``) that do not put ``cells`` where a partition already found does;
+        none if too few cells are left to register."""
         settings, pts = self.settings, self.points
         states = moving_remainder(
             self.context.working,
             pts[:, 1].astype(np.intp),
             pts[:, 0].astype(np.intp),
-            cells,
+            cells if source is None else source,
             settings.uses_free,
             settings.drop_isolated,
             settings.as_cells,
