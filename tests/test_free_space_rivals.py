@@ -143,7 +143,8 @@ def test_a_partition_bound_is_the_map_bound_of_its_counts() -> None:
 def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None:
     # step 8: A's cells placed at every translation fit at B's place and at home alike, and
     # the free space picks home: offered after the best hypothesis of A's cells registered
-    # alone (and before that of their neighbourhood)
+    # alone (and before that of their neighbourhood), each rival as found and refitted on
+    # A's cells
     broken, points, in_a, found, truth, index = case
     registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
     whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
@@ -154,6 +155,7 @@ def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None
 
     registered = relocation_rivals(found, context, registrar, whole, [1])
     offered = relocation_rivals(found, context, registrar, whole, [1], owned)
-    assert len(offered) == len(registered) + 1
-    assert offered[:1] + offered[2:] == registered
-    assert median_error(offered[1], truth, points[in_a]) < 1.0
+    assert len(offered) == len(registered) + 2
+    assert offered[:2] + offered[4:] == registered
+    assert median_error(offered[2], truth, points[in_a]) < 1.0
+    assert median_error(offered[3], truth, points[in_a]) < 1.0

@@ -64,7 +64,11 @@ place it was found at fits them too. Those cells are also placed at every transl
 the hypotheses' rotations, and the placement that explains them about as well and whose
 free space crosses the reference's walls least is a rival too
 (:mod:`~brokenness.measure.placement`): the true place of a part held at a twin is often
-not among the registration's translation peaks. After the settle step, the recovery runs
+not among the registration's translation peaks. Each of these rivals is offered as found
+and refitted on the partition's cells (:func:`~brokenness.measure.refine.refit_transform`,
+the settle step's refit of its own candidates): a hypothesis of a few cells' residual error
+makes fewer cells agree than the twin it should replace, and the settle step judges a
+rival as it is given. After the settle step, the recovery runs
 again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
 settled transforms leave clearer suspects.
 
@@ -96,6 +100,7 @@ from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
 from .placement import CoarseAgreement, free_placement
+from .refine import refit_transform
 from .support import (
     SUPPORT_RADIUS,
     SUPPORT_SHARE,
@@ -532,7 +537,9 @@ def relocation_rivals(
     (:func:`~brokenness.measure.evidence.free_space` of ``found``), its cells are also placed
     at every translation at the rotations of their hypotheses, and the placement that
     explains them about as well and whose free space crosses the reference's walls least is
-    a rival too (:func:`~brokenness.measure.placement.free_placement`).
+    a rival too (:func:`~brokenness.measure.placement.free_placement`). Each rival is given
+    as found and refitted on the partition's cells
+    (:func:`~brokenness.measure.refine.refit_transform`).
     :func:`~brokenness.measure.settle.settle` then judges every rival by the usual count, and
     by the free space.
     """
@@ -558,32 +565,36 @@ def _relocations(
         return []
     out: list[RigidTransform] = []
     coarse: CoarseAgreement | None = None
+    settings, index = search.settings, search.index
     for j in range(len(found)) if which is None else which:
         if exhausted(search.registrar):
             break
         members = found[j].members
+        cells = take_rows(search.points, members)
+        mine: list[RigidTransform | None] = []
         candidates = search.hypotheses(found, members)
-        elsewhere = search.best_of(candidates, members)
-        if elsewhere is not None:
-            out.append(elsewhere)
-        if free is not None and members.size >= search.settings.min_cells:
+        mine.append(search.best_of(candidates, members))
+        if free is not None and members.size >= settings.min_cells:
             if coarse is None:
-                coarse = CoarseAgreement.of(search.index, search.settings.threshold)
-            placed = free_placement(
-                take_rows(search.points, members),
-                found[j].transform,
-                [c.transform.rotation for c in candidates],
-                free.points(free.owner == j),
-                search.index,
-                coarse,
-                search.settings,
+                coarse = CoarseAgreement.of(index, settings.threshold)
+            mine.append(
+                free_placement(
+                    cells,
+                    found[j].transform,
+                    [c.transform.rotation for c in candidates],
+                    free.points(free.owner == j),
+                    index,
+                    coarse,
+                    settings,
+                )
             )
-            if placed is not None:
-                out.append(placed)
         if radius is not None and not exhausted(search.registrar):
-            elsewhere = search.elsewhere(found, _neighbourhood(members, search, radius))
-            if elsewhere is not None:
-                out.append(elsewhere)
+            mine.append(search.elsewhere(found, _neighbourhood(members, search, radius)))
+        # each as found and refitted on the partition's cells, as the settle step refits its
+        # own candidates (it judges a rival as it is given)
+        for t in mine:
+            if t is not None:
+                out += [t, refit_transform(t, cells, index, settings.threshold, settings.loose)]
     return out
 
 

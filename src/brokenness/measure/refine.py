@@ -18,6 +18,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
+from ..masking import ReferenceIndex
 from ..masking.distance import DistanceMap, sample_at, sample_xy
 from ..transform import RigidTransform
 
@@ -25,6 +27,7 @@ __all__ = [
     "fit_rigid",
     "polish_transform",
     "refine_transform",
+    "refit_transform",
     "soft_agreement",
     "soft_agreements",
     "sweep_rotation",
@@ -399,3 +402,33 @@ def polish_transform(
             rot_step *= 0.5
             shift_step *= 0.5
     return best
+
+
+def refit_transform(
+    transform: RigidTransform,
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    gate: float,
+) -> RigidTransform:
+    """``transform`` refitted on ``cells``: the rotation fan about the cells that agree
+    (:func:`sweep_rotation`), trimmed ICP within ``gate`` (:func:`refine_transform`), then
+    the compass search on the cells that agree after it (:func:`polish_transform`).
+
+    The refinement of the recursion's hypotheses, applied to a transform found elsewhere
+    (a tile's partition in the settle step, a rival of a partition). ``transform`` itself
+    if no cell agrees under it.
+    """
+    moved = transform.apply(cells)
+    agree = index.occupied_agreement(moved, threshold)
+    if not agree.any():
+        return transform
+    pivot = take_rows(moved, agree).mean(axis=0)
+    swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
+    fitted = refine_transform(swept, cells, index.correspondences, gate=gate)
+    return polish_transform(
+        fitted,
+        take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),
+        index.occupied_distance,
+        threshold,
+    )

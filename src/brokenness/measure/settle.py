@@ -83,7 +83,7 @@ from .evidence import MIN_EXPECTED, ClearFree, FreeSpace, chance_rate, free_spac
 from .options import Settings
 from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
-from .refine import polish_transform, refine_transform, sweep_rotation
+from .refine import refit_transform
 from .views import isolated_points
 
 __all__ = ["EXPLAINED", "MIN_TILE_CELLS", "TILE_SIDE", "settle"]
@@ -518,7 +518,9 @@ def _candidates(
                 origins.append(shifted)
             for refit in origins:
                 for _ in range(REFITS):
-                    refit = _refit(refit, tile_points, index, settings)
+                    refit = refit_transform(
+                        refit, tile_points, index, settings.threshold, settings.loose
+                    )
                 if refit is not transforms[j]:
                     seeds.append(j)
                     candidates.append(refit)
@@ -553,7 +555,7 @@ def _shifted_copies(
         cells = take_rows(points, left | agree[j])
         refit = shifted
         for _ in range(REFITS):
-            refit = _refit(refit, cells, index, settings)
+            refit = refit_transform(refit, cells, index, settings.threshold, settings.loose)
         seeds.append(j)
         candidates.append(refit)
     return seeds, candidates
@@ -622,24 +624,3 @@ def _shift_search(
     if counts[best] - counts[-1] <= margin or np.hypot(dx, dy) <= reach:
         return None
     return RigidTransform(0.0, float(dx), float(dy)).compose(transform)
-
-
-def _refit(
-    transform: RigidTransform, cells: NDArray[np.float64], index: ReferenceIndex, settings: Settings
-) -> RigidTransform:
-    """The refinement of the recursion's hypotheses (sweep, ICP, polish) on ``cells``."""
-    threshold = settings.threshold
-    moved = transform.apply(cells)
-    agree = index.occupied_agreement(moved, threshold)
-    if not agree.any():
-        return transform
-    pivot = take_rows(moved, agree).mean(axis=0)
-    swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(swept, cells, index.correspondences, gate=settings.loose)
-    polished = polish_transform(
-        fitted,
-        take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),
-        index.occupied_distance,
-        threshold,
-    )
-    return polished
