@@ -82,7 +82,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -319,6 +319,26 @@ def suspect_regions(
     return [of_cell == g for g in order if suspects[g] >= min_cells]
 
 
+def _searches(
+    points: NDArray[np.float64],
+    dense: NDArray[np.bool_],
+    suspect: NDArray[np.bool_],
+    min_cells: int,
+) -> Iterator[tuple[NDArray[np.bool_], list[NDArray[np.bool_]]]]:
+    """The searches for a lost partition, in turn (step 3 of the module docstring): the
+    cells it is counted on and the cells registered for its hypotheses (none: those cells
+    themselves). First the regions of suspects (``dense``: a lost partition is a region of
+    them; the borders of the partitions found are lines of them), then every suspect unless
+    the regions hold :data:`_SAME_SET` of them, then the groups of suspects and the regions
+    around them (:func:`_groups`, made only if the searches before found nothing)."""
+    yield dense, []
+    if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
+        yield suspect, []
+    groups = _groups(points, suspect, min_cells)
+    if groups:
+        yield suspect, groups
+
+
 def _groups(
     points: NDArray[np.float64], suspect: NDArray[np.bool_], min_cells: int
 ) -> list[NDArray[np.bool_]]:
@@ -459,30 +479,19 @@ def recover(
         suspect = support < SUPPORT_SHARE
         if np.count_nonzero(suspect) < min_cells:
             break
-        # first the regions of suspects (a lost partition is a region of them; the borders
-        # of the partitions found are lines of them), then every suspect
         dense = suspect.copy()
         dense[suspect] = (
             window_counts(rows, cols, suspect, suspect, context.shape, SUPPORT_RADIUS)
             >= DENSE_SHARE * around[suspect]
         )
-        tries = [dense]
-        if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
-            tries.append(suspect)
         new = None
         short: list[_Shortfall] = []
-        for cells in tries:
-            new, shortfall = search.lost_partition(found, cells)
+        for cells, sources in _searches(points, dense, suspect, min_cells):
+            new, shortfall = search.lost_partition(found, cells, sources)
             if shortfall is not None:
                 short.append(shortfall)
             if new is not None:
                 break
-        if new is None:  # the hypotheses of groups of suspects and of the regions around them
-            groups = _groups(points, suspect, min_cells)
-            if groups:
-                new, shortfall = search.lost_partition(found, suspect, groups)
-                if shortfall is not None:
-                    short.append(shortfall)
         rivals += [shortfall.transform for shortfall in short]
         grown, before = None, None
         for shortfall in short if new is None else ():  # counted over the whole map instead
