@@ -162,3 +162,34 @@ def test_the_cell_search_lands_on_a_wall_between_two_equal_ones() -> None:
     start = _best_shift(RigidTransform(), line, index, 2.0, np.arange(-8, 9))
     moved = start.apply(line)
     assert np.count_nonzero(index.occupied_agreement(moved, 2.0)) == line.shape[0]
+
+
+def _cells_in(points: np.ndarray, left: int, top: int, side: int) -> np.ndarray:
+    x, y = points[:, 0], points[:, 1]
+    return points[(x >= left) & (x < left + side) & (y >= top) & (y < top + side)]
+
+
+def test_a_part_mixed_with_other_borders_is_placed_at_its_walls_rotation() -> None:
+    """A part's walls (a corner of a real building, turned by 40 degrees and shifted into the
+    map's frame) mixed with half as many cells of another region turned its own way (the
+    border of another part): at the rotations of the peaks of their Hough spectra against
+    the reference's, the highest count over every translation is the part's place."""
+    from pathlib import Path
+
+    from brokenness import load_map
+    from brokenness.measure.placement import placements
+    from brokenness.registration.orientation import hough_spectrum, rotation_candidates
+
+    reference = load_map(Path(__file__).parent / "data" / "building_31.yaml")
+    index = ReferenceIndex.build(reference)
+    walls = index.occupied_points
+    truth = RigidTransform(np.radians(40.0), 250.0, -120.0)  # map cell -> reference cell
+    part = np.rint(truth.inverse().apply(_cells_in(walls, 300, 300, 180)))
+    other = RigidTransform(np.radians(-25.0), 30.0, 260.0).apply(_cells_in(walls, 80, 60, 120))
+    other = np.rint(other)[: part.shape[0] // 2]
+    cells = np.unique(np.vstack([part, other]), axis=0)
+    angles = rotation_candidates(hough_spectrum(cells), hough_spectrum(walls), 4)
+    coarse = CoarseAgreement.of(index, SETTINGS.threshold)
+    first = next(placements(cells, angles, index, coarse, SETTINGS, SETTINGS.min_cells, 8))
+    off = np.hypot(*(first.apply(part) - truth.apply(part)).T)
+    assert float(np.median(off)) <= 1.0

@@ -17,14 +17,17 @@ on their own.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
+from ..registration.orientation import hough_spectrum
 from .evidence import ClearFree
 from .options import Settings
+from .placement import CoarseAgreement
 
 __all__ = ["MapContext"]
 
@@ -63,3 +66,17 @@ class MapContext:
     def shape(self) -> tuple[int, int]:
         """``(rows, cols)`` of the working grid."""
         return self.working.shape
+
+    @cached_property
+    def coarse(self) -> CoarseAgreement:
+        """The reference's coarse agreement grid at the settings' threshold, for placements
+        at every translation (:class:`~brokenness.measure.placement.CoarseAgreement`;
+        made when first needed)."""
+        return CoarseAgreement.of(self.index, self.settings.threshold)
+
+    @cached_property
+    def reference_directions(self) -> NDArray[np.float64]:
+        """The Hough spectrum of the reference's walls
+        (:func:`~brokenness.registration.orientation.hough_spectrum`; made when first
+        needed)."""
+        return hough_spectrum(self.index.occupied_points)

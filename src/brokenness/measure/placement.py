@@ -49,7 +49,7 @@ crossing walls significantly less often. This module only proposes.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -64,7 +64,7 @@ from .evidence import Contradiction, chance_rate, landing
 from .options import Settings
 from .refine import refine_transform
 
-__all__ = ["PEAKS", "CoarseAgreement", "coarse_counts", "free_placement"]
+__all__ = ["PEAKS", "CoarseAgreement", "coarse_counts", "free_placement", "placements"]
 
 
 def _pool(threshold: float) -> int:
@@ -192,14 +192,10 @@ def free_placement(
     radius = float(np.sqrt(squared_norms(members - members.mean(axis=0)).max()))
     same = coarse.pool / (2.0 * max(radius, 1.0))
     turns = _distinct([transform.rotation, *angles], same)
-    peaks = _coarse_peaks(members, turns, coarse, floor)
     chance = chance_rate(index)
     own_rate = _upper_rate(free, transform, index, chance, z)
     best, best_rate = None, own_rate
-    sample = members[:: max(1, members.shape[0] // FINE_SAMPLE)]
-    for placement in peaks[:PEAKS]:
-        start = _fine(placement, sample, index, threshold, coarse.pool)
-        refined = refine_transform(start, members, index.correspondences, gate=settings.loose)
+    for refined in placements(members, turns, index, coarse, settings, floor):
         moved = refined.apply(members)
         if np.count_nonzero(index.occupied_agreement(moved, threshold)) < floor:
             continue
@@ -209,6 +205,49 @@ def free_placement(
         if rate < best_rate:
             best, best_rate = refined, rate
     return best
+
+
+def placements(
+    members: NDArray[np.float64],
+    angles: Sequence[float],
+    index: ReferenceIndex,
+    coarse: CoarseAgreement,
+    settings: Settings,
+    floor: float,
+    peaks: int = PEAKS,
+) -> Iterator[RigidTransform]:
+    """The placements of ``members`` at ``angles`` (radians) whose coarse count reaches
+    ``floor`` (steps 2-3 of the module docstring): the ``peaks`` highest local maxima over
+    all angles, highest first, each placed to the cell and refined at full resolution by
+    the trimmed ICP (gate: the loose threshold). A generator: each is refined when it is
+    asked for.
+
+    Parameters
+    ----------
+    members : ndarray, shape (n, 2)
+        Cells ``(x, y)`` of the working grid.
+    angles : sequence of float
+        The rotations tried.
+    index : ReferenceIndex
+        The reference, at the working resolution.
+    coarse : CoarseAgreement
+        ``index``'s coarse agreement grid at ``settings.threshold``.
+    settings : Settings
+        The per-map settings (``threshold``, ``loose``).
+    floor : float
+        Coarse counts below this are not placed.
+    peaks : int, optional
+        Placements refined, at most.
+
+    Yields
+    ------
+    RigidTransform
+    """
+    highest = _coarse_peaks(members, list(angles), coarse, floor)
+    sample = members[:: max(1, members.shape[0] // FINE_SAMPLE)]
+    for placement in highest[:peaks]:
+        start = _fine(placement, sample, index, settings.threshold, coarse.pool)
+        yield refine_transform(start, members, index.correspondences, gate=settings.loose)
 
 
 def _fine(

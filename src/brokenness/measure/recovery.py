@@ -31,7 +31,15 @@ the recursion:
    other parts, and its hypothesis is among neither set's, but the region around its
    suspects holds its taken cells too; neither a group of nearly all the suspects nor a
    region of nearly all the map, registered already, is registered again) -- and keeps
-   the best hypothesis that is not a partition already found;
+   the best hypothesis that is not a partition already found. If none of those searches
+   finds a partition, the regions of suspects are *placed* instead of registered
+   (:meth:`_Search.placed`): at the rotations that turn their walls onto the reference's
+   (the peaks of their Hough spectra's correlation,
+   :mod:`~brokenness.registration.orientation`), every translation counted
+   (:mod:`~brokenness.measure.placement`). The registration takes its rotation from the
+   whole spectrum of what it registers, and a few cells of a small part mixed with the
+   borders of parts turned by other bumps have the wrong strongest directions; their walls,
+   counted one by one, still point the part's way;
 4. counts it as a new partition if the suspects it explains *coherently* (they agree under
    it, and so do at least :data:`SUPPORT_SHARE` of the cells around them: coincidences are
    scattered) pass the recursion's stopping rule on the suspects (``k >= n p0 + z sigma``
@@ -93,13 +101,14 @@ from numpy.typing import NDArray
 from .._points import point_norms, take_rows
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
+from ..registration.orientation import hough_spectrum, rotation_candidates
 from ..transform import RigidTransform
 from .context import MapContext
 from .evidence import Contradiction, FreeSpace, contradiction, free_space
 from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
-from .placement import CoarseAgreement, free_placement
+from .placement import free_placement, placements
 from .refine import refit_transform
 from .support import (
     SUPPORT_RADIUS,
@@ -136,6 +145,12 @@ DENSE_SHARE = 0.3
 NEIGHBOURHOOD_RADIUS = SUPPORT_RADIUS // 2
 #: ... and all suspects are searched next, unless the regions hold this share of them already.
 _SAME_SET = 0.8
+#: Peaks of the Hough spectra's correlation whose rotations (each both ways round) the suspects
+#: are placed at, in the last search for a lost partition: a building's walls run in a few
+#: directions (two, 90 degrees apart, in most), so a part's rotation gives two peaks, and
+#: four peaks hold it beside one other family of directions (on the three held-out maps
+#: traced, the part's rotation was the first or second peak, within 0.6 degrees).
+ROTATION_PEAKS = 4
 #: Candidates (the best by plain agreement) whose coherent agreement is counted per search.
 _COHERENT_RANKED = 4
 #: Of those, the best (by coherent agreement) refined on the cells.
@@ -324,19 +339,22 @@ def _searches(
     dense: NDArray[np.bool_],
     suspect: NDArray[np.bool_],
     min_cells: int,
-) -> Iterator[tuple[NDArray[np.bool_], list[NDArray[np.bool_]]]]:
+) -> Iterator[tuple[NDArray[np.bool_], list[NDArray[np.bool_]], bool]]:
     """The searches for a lost partition, in turn (step 3 of the module docstring): the
-    cells it is counted on and the cells registered for its hypotheses (none: those cells
-    themselves). First the regions of suspects (``dense``: a lost partition is a region of
-    them; the borders of the partitions found are lines of them), then every suspect unless
-    the regions hold :data:`_SAME_SET` of them, then the groups of suspects and the regions
-    around them (:func:`_groups`, made only if the searches before found nothing)."""
-    yield dense, []
+    cells it is counted on, the cells registered for its hypotheses (none: those cells
+    themselves) and whether they are placed instead of registered
+    (:meth:`_Search.placed`). First the regions of suspects (``dense``: a lost partition is
+    a region of them; the borders of the partitions found are lines of them), then every
+    suspect unless the regions hold :data:`_SAME_SET` of them, then the groups of suspects
+    and the regions around them (:func:`_groups`, made only if the searches before found
+    nothing), then the regions of suspects placed at the rotations of their walls."""
+    yield dense, [], False
     if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
-        yield suspect, []
+        yield suspect, [], False
     groups = _groups(points, suspect, min_cells)
     if groups:
-        yield suspect, groups
+        yield suspect, groups, False
+    yield dense, [], True
 
 
 def _groups(
@@ -486,8 +504,8 @@ def recover(
         )
         new = None
         short: list[_Shortfall] = []
-        for cells, sources in _searches(points, dense, suspect, min_cells):
-            new, shortfall = search.lost_partition(found, cells, sources)
+        for cells, sources, placed in _searches(points, dense, suspect, min_cells):
+            new, shortfall = search.lost_partition(found, cells, sources, placed)
             if shortfall is not None:
                 short.append(shortfall)
             if new is not None:
@@ -573,7 +591,6 @@ def _relocations(
     if len(found) < 2:
         return []
     out: list[RigidTransform] = []
-    coarse: CoarseAgreement | None = None
     settings, index = search.settings, search.index
     for j in range(len(found)) if which is None else which:
         if exhausted(search.registrar):
@@ -584,8 +601,6 @@ def _relocations(
         candidates = search.hypotheses(found, members)
         mine.append(search.best_of(candidates, members))
         if free is not None and members.size >= settings.min_cells:
-            if coarse is None:
-                coarse = CoarseAgreement.of(index, settings.threshold)
             mine.append(
                 free_placement(
                     cells,
@@ -593,7 +608,7 @@ def _relocations(
                     [c.transform.rotation for c in candidates],
                     free.points(free.owner == j),
                     index,
-                    coarse,
+                    search.context.coarse,
                     settings,
                 )
             )
@@ -682,14 +697,16 @@ class _Search:
         found: list[Found],
         cells: NDArray[np.bool_],
         sources: Sequence[NDArray[np.bool_]] = (),
+        placed: bool = False,
     ) -> tuple[Found | None, _Shortfall | None]:
         """The partition that ``cells`` hide, if its hypothesis passes every test; else
         ``None`` and, if the hypothesis failed only the count (too few of ``cells`` agree
         coherently for a new partition), the hypothesis and its rivals.
 
         The hypotheses are those of ``cells`` registered alone or, if ``sources`` are given
-        (masks over the map's cells), those of each source registered alone; they are
-        counted on ``cells`` either way."""
+        (masks over the map's cells), those of each source registered alone, or, if
+        ``placed``, the placements of ``cells`` (:meth:`placed`); they are counted on
+        ``cells`` either way."""
         settings = self.settings
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells or exhausted(self.registrar):
@@ -697,8 +714,8 @@ class _Search:
         pts = self.points
         left = np.flatnonzero(cells)
         left_points = take_rows(pts, left)
-        candidates: list[Candidate] = []
-        for source in sources or (cells,):
+        candidates: list[Candidate] = self.placed(found, cells) if placed else []
+        for source in () if placed else sources or (cells,):
             if exhausted(self.registrar):
                 break  # no registration once the budget is spent
             candidates += self._new_hypotheses(found, cells, source)
@@ -737,8 +754,8 @@ class _Search:
             self.p0,
         )
         chance, _, needed = settings.needed(n, p_step)
-        if k < needed:
-            return None, _Shortfall(transform, tuple(candidates))
+        if k < needed:  # a placement is a last try, not a rival (see ``placed``)
+            return None, None if placed else _Shortfall(transform, tuple(candidates))
         members = left[with_fringe(transform, left_points, agree, self.index, settings.loose)]
         if merge_target(found, take_rows(pts, members), self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
@@ -842,6 +859,35 @@ class _Search:
             take_rows(pts, cells),
             settings.loose,
         )
+
+    def placed(self, found: list[Found], cells: NDArray[np.bool_]) -> list[Candidate]:
+        """The placements of ``cells`` at the rotations that turn their wall directions onto
+        the reference's (:func:`~brokenness.registration.orientation.rotation_candidates`,
+        :data:`ROTATION_PEAKS` peaks, each both ways round), every translation counted
+        (:func:`~brokenness.measure.placement.placements`: of those whose coarse count
+        reaches the smallest partition, as many as there are rotations, the highest), that
+        do not put ``cells`` where a partition already found does. The best of them that
+        fails the count is not returned as a rival: step 5's count over the whole map and the
+        settle step's offers are for the registration's hypotheses, and a placement that
+        explains too few suspects is the search's last try.
+
+        The registration's rotation comes from the whole spectrum of the cells registered:
+        a small part's few cells, mixed with the borders of parts turned by other bumps,
+        give a spectrum whose strongest directions are not the part's. The directions of
+        their walls (their Hough spectrum) still show the part's rotation among the few
+        highest peaks against the reference's, and at that rotation the part's place is the
+        highest count over all translations."""
+        settings, context = self.settings, self.context
+        pts = take_rows(self.points, cells)
+        spectrum = hough_spectrum(pts)
+        angles = rotation_candidates(spectrum, context.reference_directions, ROTATION_PEAKS)
+        found_here = [
+            Candidate(t, 1.0)
+            for t in placements(
+                pts, angles, self.index, context.coarse, settings, settings.min_cells, len(angles)
+            )
+        ]
+        return _new_ones(found_here, found, pts, settings.loose)
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
