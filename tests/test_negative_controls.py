@@ -248,7 +248,8 @@ def test_a_map_whose_parts_overlap_heavily_is_refused_rather_than_misread():
     every part is found at its true place, but charged to its nearest wall's partition the
     free space crosses the reference's walls at about half the chance rate, and the upper
     bound is above the limit: the degree is refused, with the free-space reason (the price of
-    the test's margin against maps of other places; README, "What sessions 13 and 14 changed")."""
+    the test's margin against maps of other places; docs/benchmark-history.md, "What
+    sessions 13 and 14 changed")."""
     from _controls import broken_simulated_maps
 
     for case in broken_simulated_maps():
