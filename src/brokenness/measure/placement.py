@@ -44,6 +44,11 @@ The placement is offered to :func:`~brokenness.measure.settle.settle` as a rival
 judges it as every rival: it must make more cells of the map agree than the partition's
 transform does, by more than chance could, or by less but with the partition's free space
 crossing walls significantly less often. This module only proposes.
+
+Steps 2-3, :func:`placements`, are also the recovery's last search for a lost partition
+(:meth:`~brokenness.measure.recovery._Search.placed`): the regions of suspect cells placed at
+the rotations of their walls (:mod:`~brokenness.registration.orientation`), every
+translation counted, the placements judged there by the recovery's own tests.
 """
 
 from __future__ import annotations
