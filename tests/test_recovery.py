@@ -257,3 +257,26 @@ def test_groups_leave_out_what_was_registered_already():
     groups = recovery._groups(points, suspect, min_cells=100)
     assert len(groups) == 4
     assert [int(g.sum()) for g in groups[::2]] == [300, 300]
+
+
+def _found(transform: RigidTransform, members: list[int]) -> Found:
+    return Found(transform, np.asarray(members, dtype=np.intp), 1.0, 0.0)
+
+
+def test_a_new_partition_is_kept_when_it_adds_or_replaces_with_more_cells():
+    """A new partition stays if the reassignment has one partition more, or if it survives
+    and the partitions explain more cells than before (it replaced one it left too few
+    cells); not if it was dropped, nor if it survives while fewer cells are explained."""
+    a, b, twin, new = (RigidTransform(0.0, float(k), 0.0) for k in range(4))
+    found = [_found(a, list(range(100))), _found(twin, list(range(100, 150)))]
+    new_one = _found(new, list(range(150, 230)))
+    added = [*found, new_one]
+    assert recovery._kept(found, added, new_one)
+    replaced = [found[0], _found(new, list(range(100, 230)))]  # the twin dropped
+    assert recovery._kept(found, replaced, new_one)
+    dropped = [found[0], found[1]]  # the new one kept too few cells
+    assert not recovery._kept(found, dropped, new_one)
+    poorer = [found[0], _found(new, list(range(100, 140)))]  # survives, fewer cells explained
+    assert not recovery._kept(found, poorer, new_one)
+    other = [_found(a, list(range(100))), _found(b, list(range(100, 250)))]  # not the new one
+    assert not recovery._kept(found, other, new_one)

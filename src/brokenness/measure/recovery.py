@@ -45,7 +45,10 @@ the recursion:
    scattered) pass the recursion's stopping rule on the suspects (``k >= n p0 + z sigma``
    and the smallest partition), it is not explained by a partition already found
    (:func:`~brokenness.measure.partitions.merge_target`), and it keeps at least the
-   smallest partition's cells when every cell goes to its best partition again;
+   smallest partition's cells when every cell goes to its best partition again (if that
+   leaves another partition too few cells of its own, that one is dropped, and the new one
+   is kept only if the partitions then explain more cells: a part found at its place
+   replaces its twin, :func:`_kept`);
 5. if no hypothesis passes step 4's count, counts the best hypotheses of step 3 again over
    the whole map (:meth:`_Search.taken_partition`): the cells a new partition of the
    hypothesis would *take* (:func:`taken_cells`: they agree coherently under it, and belong
@@ -517,7 +520,7 @@ def recover(
             if taken is None:
                 continue
             grown = reassign([*found, taken], points, index, threshold, min_cells)
-            if len(grown) <= len(found):
+            if not _kept(found, grown, taken):
                 continue
             if before is None:
                 before = contradiction(found, points, context.clear, index)
@@ -529,7 +532,7 @@ def recover(
         if grown is None:
             new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
             grown = reassign([*found, new], points, index, threshold, min_cells)
-        if len(grown) <= len(found):
+        if not _kept(found, grown, new):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
     if relocate and len(found) > 1:
@@ -538,6 +541,25 @@ def recover(
         doubtful = evidence.doubtful(settings.significance)
         rivals += _relocations(search, found, None, doubtful, owned)
     return found, rivals
+
+
+def _kept(found: list[Found], grown: list[Found], new: Found) -> bool:
+    """Whether ``grown``, every cell of ``found`` and of the new partition ``new`` given to
+    its best partition (:func:`~brokenness.measure.partitions.reassign`), keeps ``new``: it is
+    one partition more, or ``new`` is in it and it assigns more cells than ``found`` did.
+
+    The second is a replacement: a part held at a twin of its room, its true place found
+    among the suspects, takes its cells from the twin (they agree better at the true place)
+    and leaves the twin fewer than the smallest partition's cells, so the twin is dropped;
+    the map then has as many partitions as before, more of its cells explained, and the
+    part at its place. (Each replacement explains more cells, so replacements cannot cycle.)
+    """
+    if len(grown) > len(found):
+        return True
+    assigned = sum(f.members.size for f in found)
+    return any(g.transform is new.transform for g in grown) and (
+        sum(g.members.size for g in grown) > assigned
+    )
 
 
 def relocation_rivals(
