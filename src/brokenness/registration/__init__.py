@@ -3,7 +3,10 @@
 - :func:`register` -- one map against a reference, the public entry point;
 - :class:`IFMIRegistrar` -- improved Fourier-Mellin registration (deterministic, default);
 - :func:`make_registrar` -- a method by name, as the recursion of Algorithm 1 drives it;
-- :class:`Registration`, :class:`Candidate`, :class:`Registrar` -- results and interface.
+- :class:`Registration`, :class:`Candidate`, :class:`Registrar` -- results and interface;
+- :mod:`~brokenness.registration.orientation` -- rotation hypotheses from the directions of
+  a set of cells' walls (Hough spectra), which the measure's recovery places at every
+  translation when the spectral registration of those cells finds nothing.
 
 Only :data:`METHODS` and :func:`make_registrar` are loaded with the package; the other
 names (numpy, OpenCV, SciPy's FFT) on first use (:mod:`brokenness._lazy`).
