@@ -271,15 +271,20 @@ def parabolic_offset(left: float, centre: float, right: float) -> float:
     return float(min(0.5, max(-0.5, off)))
 
 
-def circular_peaks(signal: NDArray[np.floating], count: int, min_separation: int) -> list[int]:
+def circular_peaks(
+    signal: NDArray[np.floating], count: int, min_separation: int, window: int = 1
+) -> list[int]:
     """Indices of the ``count`` highest local maxima of a circular 1D signal.
 
+    A local maximum is at least every value within ``window`` bins of it (circularly).
     Peaks closer than ``min_separation`` bins (circularly) to a higher one are skipped.
     Ties are broken by the lower index, so the result is deterministic.
     """
     s = np.asarray(signal, dtype=np.float64)
     n = s.size
-    is_max = (s >= np.roll(s, 1)) & (s >= np.roll(s, -1))
+    is_max = np.ones(n, dtype=bool)
+    for k in range(1, window + 1):
+        is_max &= (s >= np.roll(s, k)) & (s >= np.roll(s, -k))
     idx = np.flatnonzero(is_max)
     order = idx[np.lexsort((idx, -s[idx]))]
     chosen: list[int] = []

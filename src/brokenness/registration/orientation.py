@@ -34,6 +34,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from ._spectral import circular_peaks, parabolic_offset
+
 __all__ = ["BINS", "SAMPLE_CELLS", "hough_spectrum", "rotation_candidates"]
 
 #: Directions of the spectrum over half a turn (one degree each).
@@ -121,35 +123,15 @@ def rotation_candidates(
         return []
     # score[s]: the moving cells' direction b turned onto the reference's b + s
     score = np.real(np.fft.ifft(np.conj(np.fft.fft(moving)) * np.fft.fft(reference)))
-    order = np.argsort(-score, kind="stable")
-    peaks: list[int] = []
-    for s in order.tolist():
-        if len(peaks) == count:
-            break
-        if any(_bin_distance(s, p) <= _PEAK_SEPARATION for p in peaks):
-            continue
-        around = [(s + k) % BINS for k in range(-_PEAK_SEPARATION, _PEAK_SEPARATION + 1)]
-        if score[s] < score[around].max():
-            continue  # on the flank of a higher peak
-        peaks.append(s)
+    # maxima of every value within the separation (not on the flank of a higher peak), and
+    # farther than it from a higher one
+    sep = _PEAK_SEPARATION
+    peaks = circular_peaks(score, count, sep + 1, window=sep)
     step = math.pi / BINS
     # each peak to a fraction of a bin (the vertex of the parabola through it and its two
     # neighbours), both ways round (a wall has no front)
     angles = [
-        (s + _vertex(score[(s - 1) % BINS], score[s], score[(s + 1) % BINS])) * step for s in peaks
+        (s + parabolic_offset(score[(s - 1) % BINS], score[s], score[(s + 1) % BINS])) * step
+        for s in peaks
     ]
     return [a for t in angles for a in (t % math.pi, t % math.pi + math.pi)]
-
-
-def _vertex(before: float, at: float, after: float) -> float:
-    """The offset, in bins (-0.5 to 0.5), of the vertex of the parabola through three
-    equally spaced values whose middle one is the highest."""
-    curvature = before - 2.0 * at + after
-    if curvature >= 0.0:
-        return 0.0
-    return float(np.clip(0.5 * (before - after) / curvature, -0.5, 0.5))
-
-
-def _bin_distance(a: int, b: int) -> int:
-    d = abs(a - b) % BINS
-    return min(d, BINS - d)
