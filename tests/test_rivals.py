@@ -103,3 +103,32 @@ def test_a_turned_partition_with_cells_of_its_own_is_kept(corner_index, broken) 
     found = _found(points, right, truth)
     kept = drop_redundant(found, points, corner_index, SETTINGS)
     assert [f.transform for f in kept] == [f.transform for f in found]
+
+
+def test_a_turned_partition_needs_more_own_cells_than_chance_could_give(
+    corner, corner_index
+) -> None:
+    # Every cell of the map agrees under the identity, but six cells moved off the walls
+    # agree under a transform turned by 30 degrees alone. Six of six is (just) more than the
+    # normal approximation's n p0 + z sqrt(n p0 (1 - p0)) at this map's p0 (0.14), but the
+    # binomial tail of six of six, about 10^-5, is far above z = 6's 10^-9: not evidence of
+    # a partition.
+    threshold = SETTINGS.threshold
+    p0 = corner_index.chance_agreement(threshold)
+    walls = cell_points(corner.occupied)
+    turned = move_about(tuple(walls.mean(axis=0)), 30.0, (7.0, -5.0))
+    # wall cells that the turned transform's inverse moves off every wall
+    off = turned.inverse().apply(walls[::97])
+    off = off[~corner_index.occupied_agreement(off, threshold)][:6]
+    assert off.shape[0] == 6
+    points = np.concatenate([walls, off])
+    own = np.arange(walls.shape[0], points.shape[0])
+    found = [
+        Found(RigidTransform(), np.arange(walls.shape[0]), 1.0, 0.0),
+        Found(turned, np.concatenate([np.flatnonzero(walls[:, 0] >= CUT), own]), 1.0, 0.0),
+    ]
+    assert corner_index.occupied_agreement(turned.apply(off), threshold).all()
+    normal = 6 * p0 + SETTINGS.significance * np.sqrt(6 * p0 * (1 - p0))
+    assert 6 > normal  # the old test passed it
+    kept = drop_redundant(found, points, corner_index, SETTINGS)
+    assert [f.transform for f in kept] == [found[0].transform]

@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+from scipy import special
+
 from ..errors import ParameterError
 from ..registration.methods import METHODS
 
@@ -203,3 +205,26 @@ class Settings:
         chance = n * p0
         spread = math.sqrt(chance * (1.0 - p0))
         return chance, spread, max(self.min_cells, chance + self.significance * spread)
+
+    def beyond_chance(self, n: int, p0: float) -> int:
+        """The fewest of ``n`` cells that must agree for chance (each cell agreeing with
+        probability ``p0``) to make that many agree no more often than a normal variable
+        exceeds ``z`` standard deviations: the smallest ``k`` with ``P(X >= k) <= 1 - Phi(z)``,
+        ``X ~ Binomial(n, p0)`` (``n + 1`` if no ``k`` is that rare).
+
+        The exact tail of :meth:`needed`'s ``n p0 + z sqrt(n p0 (1 - p0))`` without its
+        smallest partition: the two agree within a few cells when ``n p0`` is large, but
+        the binomial's tail is much heavier than the normal one when ``n p0`` is small (at
+        ``z = 6``, 7 of 7 cells agreeing at ``p0 = 0.1`` happen 10^-7 of the time, 70 times
+        the normal tail, though ``7 > n p0 + z sqrt(n p0 (1 - p0)) = 5.3``)."""
+        if n <= 0:
+            return 1
+        tail = 0.5 * math.erfc(self.significance / math.sqrt(2.0))  # 1 - Phi(z)
+        low, high = 0, n + 1  # P(X >= low) > tail (low = 0: certain), high: rare enough
+        while high - low > 1:
+            k = (low + high) // 2
+            if float(special.bdtrc(k - 1, n, p0)) <= tail:  # bdtrc(j) = P(X > j)
+                high = k
+            else:
+                low = k
+        return high

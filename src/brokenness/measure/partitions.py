@@ -352,7 +352,9 @@ def drop_redundant(
     partition of the stopping rule), and reassigns the cells. A partition turned against
     every other is evidence of its own by its transform, but not without cells: of its cells
     that no other partition explains, more must agree under it than chance would make agree
-    (the stopping rule's ``n p0 + z sqrt(n p0 (1 - p0))``, without its smallest partition);
+    (the stopping rule without its smallest partition, by the binomial's exact tail,
+    :meth:`~brokenness.measure.options.Settings.beyond_chance`: these are often a handful of
+    cells, where the normal approximation ``n p0 + z sqrt(n p0 (1 - p0))`` passes 7 of 7);
     a placement of a part at a twin of its room, once the part is found in its true place,
     explains nothing the true one does not. The partition with the least evidence (relative
     to what its test asks) is dropped first.
@@ -378,10 +380,9 @@ def drop_redundant(
             for q, g in enumerate(found):
                 if q != j:
                     unexplained &= ~index.occupied_agreement(g.transform.apply(pts), threshold)
-            chance, spread, _ = settings.needed(int(np.count_nonzero(unexplained)), p0)
-            asked = chance + settings.significance * spread
+            asked = settings.beyond_chance(int(np.count_nonzero(unexplained)), p0)
             k = int(np.count_nonzero(own & unexplained))
-            shortfall.append(k / asked if asked > 0 else (math.inf if k else 0.0))
+            shortfall.append(k / asked)
         worst = min(range(len(found)), key=lambda j: (shortfall[j], j))
         if shortfall[worst] >= 1.0:
             break

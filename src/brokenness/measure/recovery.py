@@ -640,7 +640,8 @@ def _relocations(
         # own candidates (it judges a rival as it is given)
         for t in mine:
             if t is not None:
-                out += [t, refit_transform(t, cells, index, settings.threshold, settings.loose)]
+                refit = refit_transform(t, cells, index, settings.threshold, settings.loose)
+                out += [t] if refit is t else [t, refit]  # (no refit: none of the cells agree)
     return out
 
 
