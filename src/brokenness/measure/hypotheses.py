@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._points import point_norms, take_rows
+from .._points import point_norms
 from ..masking import ReferenceIndex
 from ..registration.base import Candidate
 from ..transform import RigidTransform
-from .refine import polish_transform, refine_transform, soft_agreements, sweep_rotation
+from .refine import refit_stages, soft_agreements
 
 __all__ = ["RIVAL_QUANTILE", "best_hypothesis", "rival_chance"]
 
@@ -68,7 +68,7 @@ def best_hypothesis(
         t = cand.transform
         key = (t.rotation, t.tx, t.ty)
         if key not in memo:
-            memo[key] = _refinements(t, sample, index, threshold, hard)
+            memo[key] = _refinements(t, sample, index, threshold)
         for option, value in memo[key]:
             if value > best_score:
                 best_score = value
@@ -96,25 +96,15 @@ def _rigid(candidates: list[Any]) -> list[Candidate]:
 
 
 def _refinements(
-    transform: RigidTransform,
-    sample: NDArray[np.float64],
-    index: ReferenceIndex,
-    threshold: float,
-    hard: Callable[[NDArray[np.float64]], NDArray[np.bool_]],
+    transform: RigidTransform, sample: NDArray[np.float64], index: ReferenceIndex, threshold: float
 ) -> list[tuple[RigidTransform, float]]:
-    """The stages of the refinement of one candidate, each with its score (best stage last)."""
-    moved = transform.apply(sample)
-    agree = hard(moved)
-    if not agree.any():
+    """The stages of the refinement of one candidate (:func:`~brokenness.measure.refine.
+    refit_stages`, ICP gated at ``threshold + 1`` cells, :data:`ICP_ITERATIONS` iterations),
+    each with its score (best stage last)."""
+    stages = refit_stages(transform, sample, index, threshold, threshold + 1.0, ICP_ITERATIONS)
+    if stages is None:
         return []
-    pivot = take_rows(moved, agree).mean(axis=0)
-    swept = sweep_rotation(transform, sample, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(
-        swept, sample, index.correspondences, gate=threshold + 1.0, iterations=ICP_ITERATIONS
-    )
-    polished = polish_transform(
-        fitted, take_rows(sample, hard(fitted.apply(sample))), index.occupied_distance, threshold
-    )
+    swept, fitted, polished = stages
     options = [polished, fitted, swept, transform]
     scores = soft_agreements(index.occupied_distance, options, sample, threshold)
     return [(option, float(v)) for option, v in zip(options, scores, strict=True)]

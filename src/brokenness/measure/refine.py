@@ -419,16 +419,32 @@ def refit_transform(
     (a tile's partition in the settle step, a rival of a partition). ``transform`` itself
     if no cell agrees under it.
     """
+    stages = refit_stages(transform, cells, index, threshold, gate)
+    return transform if stages is None else stages[-1]
+
+
+def refit_stages(
+    transform: RigidTransform,
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+    gate: float,
+    iterations: int = 20,
+) -> tuple[RigidTransform, RigidTransform, RigidTransform] | None:
+    """The stages of :func:`refit_transform` (``iterations`` of the trimmed ICP): the
+    transform swept, fitted and polished, in that order; ``None`` if no cell of ``cells``
+    agrees under ``transform``."""
     moved = transform.apply(cells)
     agree = index.occupied_agreement(moved, threshold)
     if not agree.any():
-        return transform
+        return None
     pivot = take_rows(moved, agree).mean(axis=0)
     swept = sweep_rotation(transform, cells, index.occupied_distance, threshold, pivot)
-    fitted = refine_transform(swept, cells, index.correspondences, gate=gate)
-    return polish_transform(
+    fitted = refine_transform(swept, cells, index.correspondences, gate=gate, iterations=iterations)
+    polished = polish_transform(
         fitted,
         take_rows(cells, index.occupied_agreement(fitted.apply(cells), threshold)),
         index.occupied_distance,
         threshold,
     )
+    return swept, fitted, polished
