@@ -12,8 +12,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-from scipy import special
-
 from ..errors import ParameterError
 from ..registration.methods import METHODS
 
@@ -219,6 +217,8 @@ class Settings:
         the normal tail, though ``7 > n p0 + z sqrt(n p0 (1 - p0)) = 5.3``)."""
         if n <= 0:
             return 1
+        from scipy import special  # not at import: the batch process loads no SciPy
+
         tail = 0.5 * math.erfc(self.significance / math.sqrt(2.0))  # 1 - Phi(z)
         low, high = 0, n + 1  # P(X >= low) > tail (low = 0: certain), high: rare enough
         while high - low > 1:
