@@ -213,8 +213,8 @@ class Settings:
         The exact tail of :meth:`needed`'s ``n p0 + z sqrt(n p0 (1 - p0))`` without its
         smallest partition: the two agree within a few cells when ``n p0`` is large, but
         the binomial's tail is much heavier than the normal one when ``n p0`` is small (at
-        ``z = 6``, 7 of 7 cells agreeing at ``p0 = 0.1`` happen 10^-7 of the time, 70 times
-        the normal tail, though ``7 > n p0 + z sqrt(n p0 (1 - p0)) = 5.3``)."""
+        ``z = 6``, 7 of 7 cells agreeing at ``p0 = 0.1`` happen 10^-7 of the time, 100 times
+        the normal tail, though ``7 > n p0 + z sqrt(n p0 (1 - p0)) = 5.5``)."""
         if n <= 0:
             return 1
         from scipy import special  # not at import: the batch process loads no SciPy
