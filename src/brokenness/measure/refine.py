@@ -27,6 +27,7 @@ __all__ = [
     "fit_rigid",
     "polish_transform",
     "refine_transform",
+    "refit_stages",
     "refit_transform",
     "soft_agreement",
     "soft_agreements",
