@@ -217,6 +217,32 @@ def test_finer_map_is_measured_at_its_own_resolution(maps, shift):
     )
 
 
+def test_map_four_times_coarser_than_the_reference(maps):
+    # A map at 0.2 m against its reference at 0.05 m: upsampled, each map cell is 4 x 4
+    # working cells and its walls 4 cells thick, so at c = 2 the two parts fell apart into
+    # pieces (degree 4 here); the threshold is raised to the map cell's side.
+    ref = maps["building_31.yaml"]
+    h, w = ref.shape
+    motions = [RigidTransform(), move_about((0.75 * w, h / 2), 12.0, (10.0, -8.0))]
+    broken, truths = break_map(ref, strips(ref.shape, [0.5]), motions, pad=40)
+    coarse = resample_to_resolution(broken, 0.2)
+    result = compute_brokenness(coarse, ref)
+    assert result.degree == 1
+    assert result.parameters["threshold"] == 2.0  # as asked, for the record
+    assert result.parameters["working_threshold"] == pytest.approx(4.0)
+    assert result.parameters["working_resolution"] == pytest.approx(0.05)
+    s, tx, ty = cell_scale_offset(broken, coarse)
+    from_coarse = RigidTransform(0.0, tx, ty, s).inverse()
+    matched = _match(result, [t.compose(from_coarse) for t in truths])
+    assert {i for i, _ in matched} == {0, 1}
+    for _, error in matched:
+        assert error < 2.0  # reference cells (0.05 m); a map cell is 4 of them
+    # twice as coarse: the threshold as asked (c = 2 is already a map cell's side)
+    half = compute_brokenness(resample_to_resolution(broken, 0.1), ref)
+    assert half.degree == 1
+    assert half.parameters["working_threshold"] == 2.0
+
+
 def test_reference_too_large_upsampled_downsamples_the_map(maps, monkeypatch):
     ref = maps["building_31.yaml"]
     coarse = resample_to_resolution(ref, 0.1)

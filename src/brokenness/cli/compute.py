@@ -100,7 +100,8 @@ def add_parser(subparsers: Any) -> None:
         default=2.0,
         help=(
             "masking threshold c in cells of the working grid: the finer of the two maps' "
-            "(Manhattan; default 2)"
+            "(Manhattan; default 2; a map coarser than the reference by more raises it to "
+            "the side of a map cell)"
         ),
     )
     p.add_argument(
