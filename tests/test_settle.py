@@ -99,3 +99,28 @@ def test_row_and_column_counts_are_numpys(rows: int) -> None:
         assert counts.dtype == np.intp and np.array_equal(counts, np.count_nonzero(m, axis=1))
         column = _column_counts(m)
         assert column.dtype == np.int64 and np.array_equal(column, m.sum(axis=0))
+
+
+def test_a_half_whose_free_space_lands_on_walls_is_worse(reference: OccupancyMap) -> None:
+    # The map is the reference itself; its right half held by a placement turned 180 degrees
+    # about the half's centre (a twin of a symmetric building's wing). Split off from the
+    # identity, that half's free space lands on the reference's walls far more often under
+    # its own transform than under the identity's, which keeps it clear.
+    from brokenness.measure.evidence import ClearFree
+    from brokenness.measure.settle import _FreeSpaceTest
+
+    points = cell_points(reference.occupied)
+    right = points[:, 0] >= 260
+    index = ReferenceIndex.build(reference)
+    clear = ClearFree(reference, SETTINGS.threshold)
+    twin = _turn(180.0, tuple(points[right].mean(axis=0)), (0.0, 0.0))
+    found = [
+        Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
+        Found(twin, np.flatnonzero(right), 1.0, 0.0),
+    ]
+    test = _FreeSpaceTest(found, points, clear, index, SETTINGS)
+    assert test.worsened(found, 1, RigidTransform())
+    # the same half at its true place (the identity) is no worse than under a partition
+    # whose transform is the twin
+    found[1] = Found(RigidTransform(), np.flatnonzero(right), 1.0, 0.0)
+    assert not test.worsened(found, 1, twin)

@@ -61,7 +61,14 @@ mostly holds one. So :func:`settle`:
    :data:`SAME_FIT` of each other only the first is paired, and at most
    :data:`MAX_SPLIT_REFITS` of them (those explaining the most cells);
 5. gives every cell to its best partition again
-   (:func:`~brokenness.measure.partitions.reassign`).
+   (:func:`~brokenness.measure.partitions.reassign`), and, given the map's clear free
+   cells, drops each half split off whose free space (the free cells whose nearest wall is
+   one of its cells) crosses the reference's walls significantly more often under its own
+   transform than under that of the partition it was split from
+   (:meth:`_FreeSpaceTest.worsened`, the rivals' comparison the other way round): a part
+   that is truly off puts its free space on walls about as often as chance under the
+   transform that held it, while a half that agrees by coincidence (a twin of a symmetric
+   corridor, clutter on a floor) moves free space that transform kept clear onto walls.
 
 A transform moves only where the cells of its own partition pull it and the whole map agrees
 more; a partition is added only with the evidence a new partition of the recursion needs.
@@ -187,6 +194,7 @@ def settle(
     p0 = index.chance_agreement(threshold)
     free = None if clear is None else _FreeSpaceTest(found, points, clear, index, settings, owned)
     added: list[Found] = []
+    parents: list[int] = []  # the partition each of ``added`` was split from
     alive = np.ones(len(transforms), dtype=bool)  # partitions a rival left redundant drop out
     while True:
         covered = _column_counts(agree)
@@ -241,6 +249,7 @@ def settle(
         transforms.append(candidates[b])
         agree = np.vstack([agree, offered[b][None]])
         added.append(Found(candidates[b], np.zeros(0, np.intp), confidence, 0.0))
+        parents.append(j)
         alive = np.append(alive, True)
         seeds_arr[b] = -1
     if (
@@ -254,11 +263,50 @@ def settle(
         for t, f, kept in zip(transforms[: len(found)], found, alive[: len(found)], strict=True)
         if kept
     ]
-    added = [a for a, kept in zip(added, alive[len(found) :], strict=True) if kept]
+    halves = [
+        (a, transforms[j])
+        for a, j, kept in zip(added, parents, alive[len(found) :], strict=True)
+        if kept
+    ]
+    added = [a for a, _ in halves]
     settled = reassign([*moved, *added], points, index, threshold, settings.min_cells)
+    if added and free is not None:
+        settled = _without_worse_halves(settled, halves, points, index, settings, free)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
         return settle(settled, points, index, settings, rivals, refits, clear)
     return settled
+
+
+def _without_worse_halves(
+    settled: list[Found],
+    halves: list[tuple[Found, RigidTransform]],
+    points: NDArray[np.float64],
+    index: ReferenceIndex,
+    settings: Settings,
+    free: _FreeSpaceTest,
+) -> list[Found]:
+    """``settled`` without the halves split off (each with the transform of the partition it
+    was split from) whose free space crosses the reference's walls significantly more often
+    under their own transform than under that partition's
+    (:meth:`_FreeSpaceTest.worsened`), the cells reassigned.
+
+    A split is judged by the cells its two halves explain; the free space tells a part that
+    is truly off from a placement by coincidence (a twin of a corridor, the clutter on a
+    floor), as for a rival: a part's free space lands on walls about as often as chance
+    under the transform that held it when it is truly off, and rarely under its own; a half
+    that agrees by coincidence moves free space that the partition's transform kept clear
+    onto walls.
+    """
+    worse = [
+        q
+        for q, g in enumerate(settled)
+        for half, parent in halves
+        if g.transform is half.transform and free.worsened(settled, q, parent)
+    ]
+    if not worse:
+        return settled
+    kept = [g for q, g in enumerate(settled) if q not in worse]
+    return reassign(kept, points, index, settings.threshold, settings.min_cells)
 
 
 def _rival_gain(
@@ -344,6 +392,21 @@ class _FreeSpaceTest:
         self._z = settings.significance
         self._chance = chance_rate(index)
         self._owned = owned
+
+    def worsened(self, found: list[Found], q: int, parent: RigidTransform) -> bool:
+        """Whether the free space of partition ``q`` of ``found`` (the free cells whose
+        nearest wall is one of its cells) crosses the reference's walls at a significantly
+        *higher* rate under its transform than under ``parent`` (the comparison of
+        :meth:`clears`, the other way round; ``False`` when either rate cannot be told)."""
+        _, points, clear = self._args
+        owned = free_space(found, points, clear, self._index)
+        n_old, x_old = owned.counts(q, parent, self._index)
+        n_new, x_new = owned.counts(q, found[q].transform, self._index)
+        if min(n_old, n_new) * self._chance < MIN_EXPECTED:
+            return False  # too few free cells on the reference to tell a rate
+        rise = x_new / n_new - x_old / n_old
+        spread = math.sqrt((x_old + 1.0) / n_old**2 + (x_new + 1.0) / n_new**2)
+        return rise > self._z * spread
 
     def clears(self, j: int, old: RigidTransform, new: RigidTransform) -> Callable[[], bool]:
         """The test for partition ``j``, transform ``old`` replaced by ``new`` (a callable:
