@@ -119,8 +119,8 @@ def test_a_half_whose_free_space_lands_on_walls_is_worse(reference: OccupancyMap
         Found(twin, np.flatnonzero(right), 1.0, 0.0),
     ]
     test = _FreeSpaceTest(found, points, clear, index, SETTINGS)
-    assert test.worsened(found, 1, RigidTransform())
+    assert test.worsened(found, [(1, RigidTransform())]) == [1]
     # the same half at its true place (the identity) is no worse than under a partition
     # whose transform is the twin
     found[1] = Found(RigidTransform(), np.flatnonzero(right), 1.0, 0.0)
-    assert not test.worsened(found, 1, twin)
+    assert test.worsened(found, [(1, twin)]) == []

@@ -285,24 +285,16 @@ def _without_worse_halves(
     settings: Settings,
     free: _FreeSpaceTest,
 ) -> list[Found]:
-    """``settled`` without the halves split off (each with the transform of the partition it
-    was split from) whose free space crosses the reference's walls significantly more often
-    under their own transform than under that partition's
-    (:meth:`_FreeSpaceTest.worsened`), the cells reassigned.
-
-    A split is judged by the cells its two halves explain; the free space tells a part that
-    is truly off from a placement by coincidence (a twin of a corridor, the clutter on a
-    floor), as for a rival: a part's free space lands on walls about as often as chance
-    under the transform that held it when it is truly off, and rarely under its own; a half
-    that agrees by coincidence moves free space that the partition's transform kept clear
-    onto walls.
-    """
-    worse = [
-        q
+    """``settled`` without the halves split off (each given with the transform of the
+    partition it was split from) whose free space is worse under their own transform (step 5
+    of the module docstring, :meth:`_FreeSpaceTest.worsened`), the cells reassigned."""
+    parents = [
+        (q, parent)
         for q, g in enumerate(settled)
         for half, parent in halves
-        if g.transform is half.transform and free.worsened(settled, q, parent)
+        if g.transform is half.transform
     ]
+    worse = free.worsened(settled, parents)
     if not worse:
         return settled
     kept = [g for q, g in enumerate(settled) if q not in worse]
@@ -393,20 +385,24 @@ class _FreeSpaceTest:
         self._chance = chance_rate(index)
         self._owned = owned
 
-    def worsened(self, found: list[Found], q: int, parent: RigidTransform) -> bool:
-        """Whether the free space of partition ``q`` of ``found`` (the free cells whose
-        nearest wall is one of its cells) crosses the reference's walls at a significantly
-        *higher* rate under its transform than under ``parent`` (the comparison of
-        :meth:`clears`, the other way round; ``False`` when either rate cannot be told)."""
+    def worsened(self, found: list[Found], parents: list[tuple[int, RigidTransform]]) -> list[int]:
+        """Of the partitions ``q`` of ``found`` given with a transform ``parent`` (that of the
+        partition each was split from), those whose free space (the free cells whose nearest
+        wall is one of its cells, among ``found``'s) crosses the reference's walls at a
+        significantly *higher* rate under its own transform than under ``parent``: the
+        comparison of :meth:`clears`, the other way round."""
+        if not parents:
+            return []
         _, points, clear = self._args
         owned = free_space(found, points, clear, self._index)
-        n_old, x_old = owned.counts(q, parent, self._index)
-        n_new, x_new = owned.counts(q, found[q].transform, self._index)
-        if min(n_old, n_new) * self._chance < MIN_EXPECTED:
-            return False  # too few free cells on the reference to tell a rate
-        rise = x_new / n_new - x_old / n_old
-        spread = math.sqrt((x_old + 1.0) / n_old**2 + (x_new + 1.0) / n_new**2)
-        return rise > self._z * spread
+        return [
+            q
+            for q, parent in parents
+            if self._falls(
+                owned.counts(q, found[q].transform, self._index),
+                owned.counts(q, parent, self._index),
+            )
+        ]
 
     def clears(self, j: int, old: RigidTransform, new: RigidTransform) -> Callable[[], bool]:
         """The test for partition ``j``, transform ``old`` replaced by ``new`` (a callable:
@@ -416,8 +412,14 @@ class _FreeSpaceTest:
     def _clears(self, j: int, old: RigidTransform, new: RigidTransform) -> bool:
         if self._owned is None:
             self._owned = free_space(*self._args, self._index)
-        n_old, x_old = self._owned.counts(j, old, self._index)
-        n_new, x_new = self._owned.counts(j, new, self._index)
+        return self._falls(
+            self._owned.counts(j, old, self._index), self._owned.counts(j, new, self._index)
+        )
+
+    def _falls(self, old: tuple[int, int], new: tuple[int, int]) -> bool:
+        """Whether the rate ``x / n`` of ``(n, x)`` falls significantly from ``old`` to
+        ``new`` (see the class docstring; ``False`` when either cannot be told)."""
+        (n_old, x_old), (n_new, x_new) = old, new
         if min(n_old, n_new) * self._chance < MIN_EXPECTED:
             return False  # too few free cells on the reference to tell a rate
         fall = x_old / n_old - x_new / n_new
