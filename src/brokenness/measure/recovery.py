@@ -737,7 +737,7 @@ class _Search:
         pts = self.points
         left = np.flatnonzero(cells)
         left_points = take_rows(pts, left)
-        candidates: list[Candidate] = self.placed(found, cells) if placed else []
+        candidates: list[Candidate] = self.placed(found, left_points) if placed else []
         for source in () if placed else sources or (cells,):
             if exhausted(self.registrar):
                 break  # no registration once the budget is spent
@@ -883,9 +883,10 @@ class _Search:
             settings.loose,
         )
 
-    def placed(self, found: list[Found], cells: NDArray[np.bool_]) -> list[Candidate]:
-        """The placements of ``cells`` at the rotations that turn their wall directions onto
-        the reference's (:func:`~brokenness.registration.orientation.rotation_candidates`,
+    def placed(self, found: list[Found], cells: NDArray[np.float64]) -> list[Candidate]:
+        """The placements of ``cells`` (points ``(x, y)``: the suspects' rows that
+        :meth:`lost_partition` counts on) at the rotations that turn their wall directions
+        onto the reference's (:func:`~brokenness.registration.orientation.rotation_candidates`,
         :data:`ROTATION_PEAKS` peaks, each both ways round), every translation counted
         (:func:`~brokenness.measure.placement.placements`: of those whose coarse count
         reaches the smallest partition, as many as there are rotations, the highest), that
@@ -901,16 +902,15 @@ class _Search:
         highest peaks against the reference's, and at that rotation the part's place is the
         highest count over all translations."""
         settings, context = self.settings, self.context
-        pts = take_rows(self.points, cells)
-        spectrum = hough_spectrum(pts)
+        spectrum = hough_spectrum(cells)
         angles = rotation_candidates(spectrum, context.reference_directions, ROTATION_PEAKS)
         found_here = [
             Candidate(t, 1.0)
             for t in placements(
-                pts, angles, self.index, context.coarse, settings, settings.min_cells, len(angles)
+                cells, angles, self.index, context.coarse, settings, settings.min_cells, len(angles)
             )
         ]
-        return _new_ones(found_here, found, pts, settings.loose)
+        return _new_ones(found_here, found, cells, settings.loose)
 
     def _coherent(self, transform: RigidTransform, cells: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Of ``cells``, those that agree under ``transform`` with at least
