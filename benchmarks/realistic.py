@@ -101,6 +101,7 @@ from brokenness.simulation import (  # noqa: E402
     generate_building,
     map_in_frame,
     plan_map,
+    simulate_plan_run,
     simulate_run,
 )
 from brokenness.simulation.bumps import rigid_matrix  # noqa: E402
@@ -124,6 +125,19 @@ LOG_NAMES = (
     "seattle",
 )
 SIM = "sim"
+#: Buildings known only as a map or floor plan (``cases.control_sources`` names): a tour is
+#: planned through each and scanned (:func:`brokenness.simulation.simulate_plan_run`), as
+#: broken maps of buildings that no rule was chosen on (``--plans``; the source
+#: ``plan-<name>``, kind "plan").
+PLAN_NAMES = (
+    "building_31",
+    "stata_basement",
+    "willow_stage",
+    "levinelobby",
+    "depot",
+    "warehouse",
+)
+PLAN = "plan-"
 DEGREES = tuple(range(9))
 SIM_PER_SEED = 6
 QUICK_LOGS = ("orebro", "intel", "freiburg-101")
@@ -168,8 +182,15 @@ class Case:
 
     @property
     def kind(self) -> str:
-        """``"real log"`` or ``"simulated"``."""
-        return "simulated" if self.source == SIM else "real log"
+        """``"real log"``, ``"simulated"`` or ``"plan"``."""
+        return source_kind(self.source)
+
+
+def source_kind(source: str) -> str:
+    """The kind of a case's source: ``"real log"``, ``"simulated"`` or ``"plan"``."""
+    if source == SIM:
+        return "simulated"
+    return "plan" if source.startswith(PLAN) else "real log"
 
 
 def _crc(text: str) -> int:
@@ -195,6 +216,7 @@ def case_list(
     seeds: int = 1,
     logs: tuple[str, ...] | None = None,
     first_seed: int = 0,
+    plans: tuple[str, ...] = (),
 ) -> list[Case]:
     """The cases: ``seeds`` per available log and ``6 seeds`` simulated, for each degree.
 
@@ -218,6 +240,7 @@ def case_list(
     out = [make_case(n, d, s) for n in names for d in degs for s in log_seeds]
     if logs is None or SIM in logs:
         out += [make_case(SIM, d, s) for d in degs for s in sim_seeds]
+    out += [make_case(PLAN + n, d, s) for n in plans for d in degs for s in log_seeds]
     return out
 
 
@@ -242,6 +265,13 @@ class _Prepared:
 @lru_cache(maxsize=4)
 def _prepare(source: str, seed: int) -> _Prepared:
     """The run of a log (seed ignored) or of simulated building ``seed``."""
+    if source.startswith(PLAN):
+        import cases
+
+        plan = cases.control_sources()[source[len(PLAN) :]].build()
+        rng = np.random.default_rng([_crc(source), seed, 11])
+        run, extent = simulate_plan_run(plan, rng=rng)
+        return _Prepared(run, extent, None)
     if source == SIM:
         rng = np.random.default_rng([3000 + seed, 77])
         width, height = (float(v) for v in rng.uniform(18.0, 30.0, 2))
@@ -495,7 +525,7 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
     row: dict[str, Any] = {
         "case": folder.name,
         **case,
-        "kind": "simulated" if case["source"] == SIM else "real log",
+        "kind": source_kind(case["source"]),
         "expected_degree": truth["expected_degree"],
         "map_cells": list(m.shape),
         "reference_cells": list(r.shape),
@@ -564,7 +594,7 @@ def _evaluate_job(folder: str, method: str = "ifmi", seed: int | None = None) ->
 def tables(rows: list[dict[str, Any]]) -> str:
     """Per source kind and degree: cases, exact, all true, not measured, median seconds."""
     out = []
-    for kind in ("real log", "simulated"):
+    for kind in ("real log", "simulated", "plan"):
         mine = [r for r in rows if r["kind"] == kind and "measured" in r]
         if not mine:
             continue
@@ -624,6 +654,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--logs", type=str, default=None, help="e.g. intel,aces,sim")
     ap.add_argument(
+        "--plans",
+        type=str,
+        default="",
+        help="buildings known as a map, toured and scanned: all, or some of "
+        + ",".join(PLAN_NAMES),
+    )
+    ap.add_argument(
         "--out", type=Path, default=None, help="default results/realistic[_quick][_rw].json"
     )
     ap.add_argument("--tables-from", type=Path, default=None, help="only print the tables")
@@ -661,8 +698,14 @@ def main(argv: list[str] | None = None) -> int:
     warnings.simplefilter("ignore")
     degrees = tuple(int(d) for d in args.degrees.split(",")) if args.degrees else None
     logs = tuple(args.logs.split(",")) if args.logs else None
+    plans = PLAN_NAMES if args.plans == "all" else tuple(n for n in args.plans.split(",") if n)
     cases = case_list(
-        quick=args.quick, degrees=degrees, seeds=args.seeds, logs=logs, first_seed=args.first_seed
+        quick=args.quick,
+        degrees=degrees,
+        seeds=args.seeds,
+        logs=logs,
+        first_seed=args.first_seed,
+        plans=plans,
     )
     start = time.perf_counter()
     workers = max(1, args.workers)

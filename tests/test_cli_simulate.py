@@ -38,3 +38,28 @@ def test_simulate_bad_log_is_one_line(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path), "--log", str(not_a_log)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "x.log" in err
+
+
+def test_simulate_from_a_plan_of_the_users_building(tmp_path, capsys):
+    """``--plan``: the Nav2 depot map toured by the simulated laser and broken twice."""
+    plan = Path(__file__).parent / "data" / "depot.yaml"
+    args = ["simulate", "--out", str(tmp_path), "--plan", str(plan), "--degree", "2"]
+    assert main([*args, "--seed", "4", "--quiet"]) == 0
+    truth = json.loads((tmp_path / "sim_0004.json").read_text())
+    assert truth["expected_degree"] == 2 and truth["parameters"]["plan"] == str(plan)
+    m = load_map(tmp_path / "sim_0004.yaml")
+    ref = load_map(tmp_path / "sim_0004_reference.yaml")
+    assert compute_brokenness(m, ref).degree == 2
+
+
+def test_simulate_a_plan_with_no_room_for_the_robot_is_one_line(tmp_path, capsys):
+    import numpy as np
+
+    from brokenness import OCCUPIED, OccupancyMap, save_map
+
+    states = np.full((40, 40), OCCUPIED, dtype=np.int8)
+    save_map(OccupancyMap(states, 0.05, (0.0, 0.0, 0.0)), tmp_path / "solid.yaml")
+    args = ["simulate", "--out", str(tmp_path / "out"), "--plan", str(tmp_path / "solid.yaml")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no free cell of the plan is 0.4 m from every wall" in err

@@ -22,7 +22,8 @@ def add_parser(subparsers: Any) -> None:
             "estimate (the broken map; Birk 2010). Writes NAME.yaml/.pgm, "
             "NAME_reference.yaml/.pgm, NAME.json (seed, bumps, expected degree, each "
             "partition's true transform and share) and NAME_labels.npy per map. With --log, "
-            "the run is a real CARMEN laser log with corrected poses instead of a building."
+            "the run is a real CARMEN laser log with corrected poses instead of a building; "
+            "with --plan, a tour planned through the free space of a map of your building."
         ),
         epilog="exit status: 0 done; 2 bad input or options (one line on stderr)",
     )
@@ -85,12 +86,21 @@ def add_parser(subparsers: Any) -> None:
         help="make N maps with seeds SEED..SEED+N-1 (default 1)",
     )
     p.add_argument("--name", default="sim", help="file name prefix (default 'sim')")
-    p.add_argument(
+    source = p.add_mutually_exclusive_group()
+    source.add_argument(
         "--log",
         metavar="PATH",
         default=None,
         help="a CARMEN log (FLASER/ROBOTLASER1, gzip or plain) with corrected poses: inject "
         "the bumps into its pose chain instead of simulating a building (--size is ignored)",
+    )
+    source.add_argument(
+        "--plan",
+        metavar="PATH",
+        default=None,
+        help="a map or floor plan of your building (ROS YAML, PGM, PNG; free cells are where "
+        "the robot may go): tour it with the simulated laser instead of generating a "
+        "building (--size is ignored)",
     )
     add_verbosity(p)
     p.set_defaults(func=run)
@@ -153,11 +163,24 @@ def run(args: argparse.Namespace) -> int:
         check_regular(Path(args.log), "CARMEN log")  # no FIFO or device: it would never end
 
         log = read_carmen(args.log)
+    plan = None
+    if args.plan is not None:
+        from ..io.load import load_map
+
+        plan = load_map(args.plan)
     for seed in range(args.seed, args.seed + args.count):
         if log is not None:
             from ..simulation.carmen import broken_log_map
 
             sim = broken_log_map(log, seed=seed, **bump_options)
+        elif plan is not None:
+            from ..simulation.options import BumpOptions
+            from ..simulation.plan_run import broken_plan_map
+
+            options = {k: v for k, v in bump_options.items() if k != "resolution"}
+            sim = broken_plan_map(
+                plan, BumpOptions(seed=seed, **options), resolution=args.resolution
+            )
         else:
             sim = simulate_broken_map(seed=seed, size=args.size, **bump_options)
         name = f"{args.name}_{seed:04d}"

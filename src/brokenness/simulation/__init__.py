@@ -10,6 +10,8 @@
   the honest expected degree;
 - :mod:`.synthetic`: :func:`simulate_broken_map`, a broken map + reference + ground truth;
 - :mod:`.views`: a run mapped in its own frame, cropped; a building's plan as a reference;
+- :mod:`.plan_run`: a tour planned through any map or floor plan, scanned (broken maps of
+  a building that is known only as a map);
 - :mod:`.output`: :func:`save_simulation`, maps (ROS YAML + PGM), ground-truth JSON, labels.
 """
 
@@ -21,6 +23,7 @@ from .laser import Laser, LaserRun, cast_rays, route_poses, simulate_run
 from .mapper import ScanCounts, counts_to_map, grid_geometry, map_prefixes, map_scans, scan_counts
 from .options import BumpOptions, HonestRule
 from .output import save_simulation
+from .plan_run import broken_plan_map, plan_route, simulate_plan_run
 from .synthetic import SimulatedMap, SimulatedPartition, simulate_broken_map
 from .views import frame_truth, map_in_frame, plan_map
 
@@ -35,6 +38,7 @@ __all__ = [
     "SimulatedMap",
     "SimulatedPartition",
     "apply_bumps",
+    "broken_plan_map",
     "cast_rays",
     "counts_to_map",
     "draw_bumps",
@@ -46,9 +50,11 @@ __all__ = [
     "map_prefixes",
     "map_scans",
     "plan_map",
+    "plan_route",
     "route_poses",
     "save_simulation",
     "scan_counts",
     "simulate_broken_map",
+    "simulate_plan_run",
     "simulate_run",
 ]
