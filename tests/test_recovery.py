@@ -280,3 +280,25 @@ def test_a_new_partition_is_kept_when_it_adds_or_replaces_with_more_cells():
     assert not recovery._kept(found, poorer, new_one)
     other = [_found(a, list(range(100))), _found(b, list(range(100, 250)))]  # not the new one
     assert not recovery._kept(found, other, new_one)
+
+
+def test_a_recovery_round_is_not_repeated_when_the_tests_change_nothing(monkeypatch) -> None:
+    """The recovery's search depends only on the partitions it starts from: once the tests
+    after it (join, drop, settle) leave them as they were, a second round would search the
+    same suspects again, and it is not run; the bundled broken example still has degree 2."""
+    import brokenness.measure.recursion as recursion
+
+    rounds: list[int] = []
+    search = recursion.recover
+
+    def counted(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        rounds.append(len(args[0]))
+        return search(*args, **kwargs)
+
+    monkeypatch.setattr(recursion, "recover", counted)
+    root = Path(__file__).parent.parent / "examples"
+    reference = load_map(root / "building_31.yaml")
+    result = compute_brokenness(load_map(root / "broken_building_31.yaml"), reference)
+    assert result.degree == 2 and len(rounds) == 1
+    rounds.clear()
+    assert compute_brokenness(reference, reference).degree == 0 and len(rounds) == 1

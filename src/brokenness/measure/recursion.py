@@ -335,11 +335,15 @@ def _compute(
         ClearFree(working, settings.threshold),
     )
     found, rivals = recover(found, context, thorough, whole, relocate=True)
+    searched = found  # what the recovery's last search ran on
     found = _tested(found, context, rivals)
     for _ in range(1, RECOVERY_ROUNDS):  # settled transforms leave clearer suspects
+        if _same_partitions(found, searched):
+            break  # the tests changed nothing: a round would repeat the last search
         again, rivals = recover(found, context, thorough, whole)
         if len(again) <= len(found):
             break
+        searched = again
         found = _tested(again, context, rivals)
     found, evidence = _relocated(found, context, thorough, whole)
     del whole  # the prepared reference (its distance map): no registration now
@@ -395,6 +399,20 @@ def _compute(
         reason=reason,
         contradiction=map_ratio,
         contradiction_bound=map_bound,
+    )
+
+
+def _same_partitions(a: list[Found], b: list[Found]) -> bool:
+    """Whether ``a`` and ``b`` hold the same partitions: the same transforms (the same
+    objects: the tests keep a transform they do not move) and the same members, in order.
+
+    The recovery's search is a function of the partitions it starts from (it first gives
+    every cell to its best partition, which changes nothing in partitions it returned), so
+    a round on the partitions its last round returned would search the same suspects again
+    and find nothing; a round is run only if the tests in between changed them."""
+    return len(a) == len(b) and all(
+        f.transform is g.transform and np.array_equal(f.members, g.members)
+        for f, g in zip(a, b, strict=True)
     )
 
 
