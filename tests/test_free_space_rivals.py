@@ -159,3 +159,21 @@ def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None
     assert offered[:2] + offered[4:] == registered
     assert median_error(offered[2], truth, points[in_a]) < 1.0
     assert median_error(offered[3], truth, points[in_a]) < 1.0
+
+
+def test_every_partition_is_placed_at_its_own_and_the_opposite_rotation(case) -> None:
+    # after settling (``relocation_rivals`` with the free space): a partition whose free space
+    # does not make it doubtful is not registered again, but its cells are still placed at
+    # every translation at its own rotation and the opposite one; here A, held at B's place,
+    # is searched that way alone (no partition registered) and its home is offered
+    broken, points, in_a, found, truth, index = case
+    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
+    whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
+    clear = ClearFree(broken, SETTINGS.threshold)
+    around = occupied_around(points, broken.shape)
+    context = MapContext(points, broken, index, SETTINGS, around, clear)
+    owned = free_space(found, points, clear, index)
+    assert relocation_rivals(found, context, registrar, whole, []) == []  # nothing to place
+    offered = relocation_rivals(found, context, registrar, whole, [], owned)
+    assert len(offered) == 2  # the placement, as found and refitted
+    assert all(median_error(t, truth, points[in_a]) < 1.0 for t in offered)

@@ -29,10 +29,12 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
    cells the partition's own transform makes agree, less ``z`` standard deviations of
    chance (``z sqrt(n p0 (1 - p0))`` for ``n`` cells and chance agreement ``p0``, the
    margin within which the recursion already treats two hypotheses as explaining about as
-   many cells); the :data:`PEAKS` highest over all rotations are placed to the cell (the
-   translation, among those within a coarse cell, that makes the most of a sample of the
-   cells agree) and refined at full resolution by the trimmed ICP that refines the
-   registration's hypotheses;
+   many cells); of the :data:`PEAKS` highest over all rotations, those that do not stand
+   for the partition's own placement (within a coarse cell's diagonal plus the loose
+   threshold of it, on average: the refinement would bring them back to it) are placed to
+   the cell (the translation, among those within a coarse cell, that makes the most of a
+   sample of the cells agree) and refined at full resolution by the trimmed ICP that
+   refines the registration's hypotheses;
 4. of the refined placements that still reach the floor and put the cells elsewhere (more
    than the loose threshold from where the partition's transform puts them, on average),
    returns the one whose free space (the partition's clear free cells) has the lowest upper
@@ -40,7 +42,11 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
    (:meth:`~brokenness.measure.evidence.Contradiction.upper_ratio`, same ``z``), if that is
    below the partition's own transform's rate.
 
-The placement is offered to :func:`~brokenness.measure.settle.settle` as a rival, which
+The partitions placed this way are those whose free space does not show that they are in
+place (at the rotations of their hypotheses too) and, after the last settling, every other
+one, at its own rotation and the opposite one only
+(:func:`~brokenness.measure.recovery.relocation_rivals`). The placement is offered to
+:func:`~brokenness.measure.settle.settle` as a rival, which
 judges it as every rival: it must make more cells of the map agree than the partition's
 transform does, by more than chance could, or by less but with the partition's free space
 crossing walls significantly less often. This module only proposes.
@@ -200,7 +206,7 @@ def free_placement(
     chance = chance_rate(index)
     own_rate = _upper_rate(free, transform, index, chance, z)
     best, best_rate = None, own_rate
-    for refined in placements(members, turns, index, coarse, settings, floor):
+    for refined in placements(members, turns, index, coarse, settings, floor, besides=here):
         moved = refined.apply(members)
         if np.count_nonzero(index.occupied_agreement(moved, threshold)) < floor:
             continue
@@ -220,6 +226,7 @@ def placements(
     settings: Settings,
     floor: float,
     peaks: int = PEAKS,
+    besides: NDArray[np.float64] | None = None,
 ) -> Iterator[RigidTransform]:
     """The placements of ``members`` at ``angles`` (radians) whose coarse count reaches
     ``floor`` (steps 2-3 of the module docstring): the ``peaks`` highest local maxima over
@@ -243,14 +250,24 @@ def placements(
         Coarse counts below this are not placed.
     peaks : int, optional
         Placements refined, at most.
+    besides : ndarray, shape (n, 2), optional
+        ``members`` where a placement already puts them: the coarse placements that put
+        them within a coarse cell's diagonal plus the loose threshold of there, on average,
+        are that placement and are not refined (the refinement, gated at the loose
+        threshold, would bring them back to it).
 
     Yields
     ------
     RigidTransform
     """
-    highest = _coarse_peaks(members, list(angles), coarse, floor)
+    highest = _coarse_peaks(members, list(angles), coarse, floor)[:peaks]
+    if besides is not None:
+        near = settings.loose + coarse.pool * math.sqrt(2.0)
+        highest = [
+            p for p in highest if float(np.mean(point_norms(p.apply(members) - besides))) > near
+        ]
     sample = members[:: max(1, members.shape[0] // FINE_SAMPLE)]
-    for placement in highest[:peaks]:
+    for placement in highest:
         start = _fine(placement, sample, index, settings.threshold, coarse.pool)
         yield refine_transform(start, members, index.correspondences, gate=settings.loose)
 

@@ -539,7 +539,7 @@ def recover(
         owned = free_space(found, points, context.clear, index)
         evidence = contradiction(found, points, context.clear, index, owned)
         doubtful = evidence.doubtful(settings.significance)
-        rivals += _relocations(search, found, None, doubtful, owned)
+        rivals += _relocations(search, found, None, doubtful, owned, place_every=False)
     return found, rivals
 
 
@@ -586,7 +586,11 @@ def relocation_rivals(
     (:func:`~brokenness.measure.evidence.free_space` of ``found``), its cells are also placed
     at every translation at the rotations of their hypotheses, and the placement that
     explains them about as well and whose free space crosses the reference's walls least is
-    a rival too (:func:`~brokenness.measure.placement.free_placement`). Each rival is given
+    a rival too (:func:`~brokenness.measure.placement.free_placement`); and so are the cells
+    of every partition that ``which`` leaves out, with no registration, at its own rotation
+    and the opposite one (the twin of a stretch of corridor or of a symmetric room is most
+    often half a turn away, and a partition whose free space passes on its own may still
+    stand at one). Each rival is given
     as found and refitted on the partition's cells
     (:func:`~brokenness.measure.refine.refit_transform`).
     :func:`~brokenness.measure.settle.settle` then judges every rival by the usual count, and
@@ -602,39 +606,46 @@ def _relocations(
     radius: int | None = None,
     which: Sequence[int] | None = None,
     free: FreeSpace | None = None,
+    place_every: bool = True,
 ) -> list[RigidTransform]:
     """:func:`relocation_rivals` with its search made, with the neighbourhood of ``radius``
     cells of each partition too (``None``: its own cells alone), and, given the map's free
     space ``free`` (:func:`~brokenness.measure.evidence.free_space` of ``found``), the
     placement of each partition's cells that explains them about as well and whose free
     space crosses the reference's walls least
-    (:func:`~brokenness.measure.placement.free_placement`). None for a lone partition: its
-    cells are what the first step registered."""
+    (:func:`~brokenness.measure.placement.free_placement`): of the partitions ``which``
+    gives, at the rotations of their hypotheses; if ``place_every``, of the others too, at
+    their own rotation and the opposite one. None for a lone partition: its cells are what
+    the first step registered."""
     if len(found) < 2:
         return []
     out: list[RigidTransform] = []
     settings, index = search.settings, search.index
-    for j in range(len(found)) if which is None else which:
-        if exhausted(search.registrar):
-            break
+    searched = set(range(len(found)) if which is None else which)
+    for j in range(len(found)) if place_every else sorted(searched):
         members = found[j].members
         cells = take_rows(search.points, members)
         mine: list[RigidTransform | None] = []
-        candidates = search.hypotheses(found, members)
-        mine.append(search.best_of(candidates, members))
+        registered = j in searched and not exhausted(search.registrar)
+        if registered:
+            candidates = search.hypotheses(found, members)
+            mine.append(search.best_of(candidates, members))
+            angles = [c.transform.rotation for c in candidates]
+        else:  # no registration: its own rotation and the opposite one (a corridor's twin)
+            angles = [found[j].transform.rotation + math.pi]
         if free is not None and members.size >= settings.min_cells:
             mine.append(
                 free_placement(
                     cells,
                     found[j].transform,
-                    [c.transform.rotation for c in candidates],
+                    angles,
                     free.points(free.owner == j),
                     index,
                     search.context.coarse,
                     settings,
                 )
             )
-        if radius is not None and not exhausted(search.registrar):
+        if registered and radius is not None and not exhausted(search.registrar):
             mine.append(search.elsewhere(found, _neighbourhood(members, search, radius)))
         # each as found and refitted on the partition's cells, as the settle step refits its
         # own candidates (it judges a rival as it is given)
