@@ -62,7 +62,7 @@ def _placement(reference: OccupancyMap, held_at: RigidTransform) -> RigidTransfo
     free = free_space(found, points, ClearFree(room, SETTINGS.threshold), index)
     coarse = CoarseAgreement.of(index, SETTINGS.threshold)
     mine = free.points(free.owner == 0)
-    return free_placement(points, held_at, [], mine, index, coarse, SETTINGS)
+    return free_placement(points, held_at, [held_at.rotation], mine, index, coarse, SETTINGS)
 
 
 def _at(placement: RigidTransform, room: RigidTransform) -> bool:

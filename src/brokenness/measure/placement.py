@@ -15,9 +15,9 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
 
 :func:`free_placement`, for one partition:
 
-1. takes the rotations: the partition's own and those of the hypotheses of its cells
-   registered alone, of those that turn no cell by half a coarse cell against an earlier
-   one the first only (the refinement corrects the rest);
+1. takes the rotations it is given (the partition's own and those of the hypotheses of its
+   cells registered alone, or the opposite of its own), of those that turn no cell by half
+   a coarse cell against an earlier one the first only (the refinement corrects the rest);
 2. at each rotation counts, for every translation, the partition's cells that agree, on a
    coarse grid (:class:`CoarseAgreement`, ``2 threshold`` cells a side or coarser): the
    reference's agreement mask (cells within ``threshold`` of a wall), max-pooled and dilated
@@ -43,8 +43,8 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
    below the partition's own transform's rate.
 
 The partitions placed this way are those whose free space does not show that they are in
-place (at the rotations of their hypotheses too) and, after the last settling, every other
-one, at its own rotation and the opposite one only
+place (at their own rotation and those of their hypotheses) and, after the last settling,
+every other one, at the opposite of its own rotation only
 (:func:`~brokenness.measure.recovery.relocation_rivals`). The placement is offered to
 :func:`~brokenness.measure.settle.settle` as a rival, which
 judges it as every rival: it must make more cells of the map agree than the partition's
@@ -174,8 +174,8 @@ def free_placement(
     transform : RigidTransform
         The partition's transform.
     angles : sequence of float
-        Rotations (radians) to try besides the transform's own: those of the hypotheses of
-        the cells registered alone.
+        Rotations (radians) to try: the transform's own and those of the hypotheses of the
+        cells registered alone, or only the opposite of its own (a half-turn twin).
     free : ndarray, shape (m, 2)
         The partition's clear free cells ``(x, y)`` (those
         :func:`~brokenness.measure.evidence.free_space` gives it).
@@ -202,7 +202,7 @@ def free_placement(
     # rotations that move no cell by half a coarse cell against each other are one
     radius = float(np.sqrt(squared_norms(members - members.mean(axis=0)).max()))
     same = coarse.pool / (2.0 * max(radius, 1.0))
-    turns = _distinct([transform.rotation, *angles], same)
+    turns = _distinct(angles, same)
     chance = chance_rate(index)
     own_rate = _upper_rate(free, transform, index, chance, z)
     best, best_rate = None, own_rate

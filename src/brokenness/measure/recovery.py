@@ -587,10 +587,10 @@ def relocation_rivals(
     at every translation at the rotations of their hypotheses, and the placement that
     explains them about as well and whose free space crosses the reference's walls least is
     a rival too (:func:`~brokenness.measure.placement.free_placement`); and so are the cells
-    of every partition that ``which`` leaves out, with no registration, at its own rotation
-    and the opposite one (the twin of a stretch of corridor or of a symmetric room is most
-    often half a turn away, and a partition whose free space passes on its own may still
-    stand at one). Each rival is given
+    of every partition that ``which`` leaves out, with no registration, at the opposite of
+    its own rotation (the twin of a stretch of corridor or of a symmetric room is most often
+    half a turn away, and a partition whose free space passes on its own may still stand at
+    one). Each rival is given
     as found and refitted on the partition's cells
     (:func:`~brokenness.measure.refine.refit_transform`).
     :func:`~brokenness.measure.settle.settle` then judges every rival by the usual count, and
@@ -614,9 +614,9 @@ def _relocations(
     placement of each partition's cells that explains them about as well and whose free
     space crosses the reference's walls least
     (:func:`~brokenness.measure.placement.free_placement`): of the partitions ``which``
-    gives, at the rotations of their hypotheses; if ``place_every``, of the others too, at
-    their own rotation and the opposite one. None for a lone partition: its cells are what
-    the first step registered."""
+    gives, at their own rotation and those of their hypotheses; if ``place_every``, of the
+    others too, at the opposite of their own rotation. None for a lone partition: its cells
+    are what the first step registered."""
     if len(found) < 2:
         return []
     out: list[RigidTransform] = []
@@ -630,8 +630,8 @@ def _relocations(
         if registered:
             candidates = search.hypotheses(found, members)
             mine.append(search.best_of(candidates, members))
-            angles = [c.transform.rotation for c in candidates]
-        else:  # no registration: its own rotation and the opposite one (a corridor's twin)
+            angles = [found[j].transform.rotation, *(c.transform.rotation for c in candidates)]
+        else:  # no registration: the opposite of its own rotation (a half-turn twin)
             angles = [found[j].transform.rotation + math.pi]
         if free is not None and members.size >= settings.min_cells:
             mine.append(
