@@ -124,8 +124,9 @@ def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
     options = {"registration_options": {"walkers_per_angle": 1, "spectral_starts": 3}}
     result = compute_brokenness(broken, depot, method="random-walk", seed=1, **options)
     assert result.degree == 1
-    # the first round and the second, which finds nothing new: both with the wider walk
-    assert len(seen) == 2 and seen[1] is seen[0] and isinstance(seen[0], RandomWalkRegistrar)
+    # one round: the tests after it change nothing, so a second would search the same
+    # suspects again (``recursion._same_partitions``); it is run with the wider walk
+    assert len(seen) == 1 and isinstance(seen[0], RandomWalkRegistrar)
     assert seen[0].seed == 1
     assert (seen[0].options.walkers_per_angle, seen[0].options.spectral_starts) == (2, 6)
 

@@ -161,7 +161,6 @@ def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None
     assert median_error(offered[3], truth, points[in_a]) < 1.0
 
 
-
 def test_every_partition_is_placed_at_the_opposite_rotation(case) -> None:
     # after settling (``relocation_rivals`` with the free space): a partition whose free space
     # does not make it doubtful is not registered again, but its cells are still placed at
