@@ -307,18 +307,43 @@ def simulate_run(
     """
     laser = Laser() if laser is None else laser
     rng = np.random.default_rng(0) if rng is None else rng
-    if not all(math.isfinite(s) and s >= 0 for s in pose_sigma):
-        raise ParameterError(f"pose_sigma must be non-negative numbers, got {pose_sigma!r}")
+    check_pose_sigma(pose_sigma)
     poses = route_poses(
         building.route, spacing=spacing, turn_step_deg=turn_step_deg, spin_at=building.spin_at
     )
+    return scan_poses(building.grid, building.truth_resolution, poses, laser, pose_sigma, rng)
+
+
+def check_pose_sigma(pose_sigma: tuple[float, float]) -> None:
+    """Raise a :class:`ParameterError` unless ``pose_sigma`` is two non-negative numbers."""
+    if not all(math.isfinite(s) and s >= 0 for s in pose_sigma):
+        raise ParameterError(f"pose_sigma must be non-negative numbers, got {pose_sigma!r}")
+
+
+def scan_poses(
+    solid: NDArray[np.bool_],
+    resolution: float,
+    poses: NDArray[np.float64],
+    laser: Laser,
+    pose_sigma: tuple[float, float],
+    rng: np.random.Generator,
+) -> LaserRun:
+    """Scan a ground-truth grid from ``poses``: the ranges of :func:`cast_rays` with Gaussian
+    range noise (hits only, kept inside the range), and the pose estimate, the poses with
+    Gaussian noise of ``pose_sigma`` (metres per axis, radians) drawn after it from ``rng``.
+
+    Raises
+    ------
+    ParameterError
+        For a run of more than :data:`MAX_READINGS` readings (scans x beams).
+    """
     if len(poses) * laser.beams > MAX_READINGS:
         raise ParameterError(
             f"{len(poses)} scans of {laser.beams} beams are more than {MAX_READINGS} readings "
             "(MAX_READINGS): use a larger spacing or fewer beams"
         )
     angles = laser.angles
-    ranges = cast_rays(building.grid, building.truth_resolution, poses, angles, laser.max_range)
+    ranges = cast_rays(solid, resolution, poses, angles, laser.max_range)
     noise = rng.normal(0.0, 1.0, ranges.shape) * laser.range_sigma
     hit = ranges < laser.max_range
     ranges = np.where(

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from ..errors import MapError, ParameterError
 from ..grid import FREE, OccupancyMap
 from .ground_truth import SimulatedMap, break_run
-from .laser import MAX_READINGS, Laser, LaserRun, cast_rays, route_poses
+from .laser import Laser, LaserRun, check_pose_sigma, route_poses, scan_poses
 from .options import BumpOptions
 
 __all__ = ["ROUTE_CELL", "broken_plan_map", "plan_route", "simulate_plan_run"]
@@ -160,27 +160,11 @@ def simulate_plan_run(
     """
     laser = Laser() if laser is None else laser
     rng = np.random.default_rng(0) if rng is None else rng
-    if not all(math.isfinite(s) and s >= 0 for s in pose_sigma):
-        raise ParameterError(f"pose_sigma must be non-negative numbers, got {pose_sigma!r}")
+    check_pose_sigma(pose_sigma)
     route = plan_route(plan, clearance=clearance, waypoint_spacing=waypoint_spacing, rng=rng)
     poses = route_poses(route, spacing=spacing, turn_step_deg=turn_step_deg)
-    if len(poses) * laser.beams > MAX_READINGS:
-        raise ParameterError(
-            f"{len(poses)} scans of {laser.beams} beams are more than {MAX_READINGS} readings "
-            "(MAX_READINGS): use a larger spacing or fewer beams"
-        )
     res = _resolution(plan)
-    solid = np.asarray(plan.states != FREE)
-    ranges = cast_rays(solid, res, poses, laser.angles, laser.max_range)
-    noise = rng.normal(0.0, 1.0, ranges.shape) * laser.range_sigma
-    hit = ranges < laser.max_range
-    ranges = np.where(
-        hit, np.clip(ranges + noise, 1e-3, laser.max_range * (1 - 1e-9)), laser.max_range
-    )
-    pn = rng.normal(0.0, 1.0, poses.shape) * np.array([pose_sigma[0], pose_sigma[0], pose_sigma[1]])
-    run = LaserRun(
-        true_poses=poses, noisy_poses=poses + pn, ranges=ranges, angles=laser.angles, laser=laser
-    )
+    run = scan_poses(np.asarray(plan.states != FREE), res, poses, laser, pose_sigma, rng)
     height, width = (side * res for side in plan.shape)
     return run, (0.0, 0.0, float(width), float(height))
 
