@@ -126,3 +126,32 @@ def test_a_broken_map_of_a_toured_plan_is_measured_with_its_degree() -> None:
     turns = sorted(abs(p.transform.rotation_deg) for p in result.partitions)
     truth = sorted(abs(p.transform.rotation_deg) for p in parts)
     np.testing.assert_allclose(turns, truth, atol=1.0)
+
+
+def test_waypoints_too_close_for_the_memory_bound_are_spread(monkeypatch) -> None:
+    """Waypoints a micrometre apart would make every route cell one, and the tour's distances
+    (waypoints x route cells) grow with the square of the plan: the blocks are doubled until
+    they fit ``MAX_TOUR_ENTRIES``, and the tour still goes through both rooms."""
+    import brokenness.simulation.plan_run as plan_run
+
+    plan = _two_rooms()
+    seen: list[int] = []
+    tour = plan_run._tour
+
+    def counted(inside, nodes, rows, cols, waypoints, start):  # noqa: ANN001, ANN202
+        seen.append(waypoints.size * rows.size)
+        return tour(inside, nodes, rows, cols, waypoints, start)
+
+    monkeypatch.setattr(plan_run, "_tour", counted)
+    monkeypatch.setattr(plan_run, "MAX_TOUR_ENTRIES", 20_000)
+    route = plan_route(plan, waypoint_spacing=1e-6, rng=np.random.default_rng(3))
+    assert 0 < seen[0] <= 20_000
+    assert (route[:, 0] < 6.0).any() and (route[:, 0] > 9.0).any()
+
+
+def test_a_plan_finer_than_the_route_grid_by_far_is_refused_quickly() -> None:
+    # a micrometre a cell: the whole plan is less than one route cell (no block grid as large
+    # as a route cell is made), and no cell is 0.4 m from a wall
+    plan = OccupancyMap(_two_rooms().states, 1e-6, (0.0, 0.0, 0.0), "tiny")
+    with pytest.raises(MapError, match="no free cell of the plan is 0.4 m from every wall"):
+        plan_route(plan)

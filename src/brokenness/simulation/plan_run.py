@@ -15,7 +15,8 @@ The route, on a grid of :data:`ROUTE_CELL` metres:
    the clearance, so the robot stays at least ``clearance - ROUTE_CELL`` from every wall,
    and two rooms behind a wall thinner than twice the clearance are not joined.
 2. **Waypoints.** In every block of ``waypoint_spacing`` metres, the open cell farthest
-   from the walls (the first in row-major order of ties).
+   from the walls (the first in row-major order of ties); blocks twice as large, as often
+   as needed, where the tour's distances would be more than :data:`MAX_TOUR_ENTRIES`.
 3. **Tour.** From a waypoint drawn by ``rng``, always on to the nearest waypoint not yet
    visited, nearest along the open cells (Dijkstra on the 8-connected route grid).
 4. **Polyline.** The shortest paths between consecutive waypoints, joined and simplified
@@ -43,10 +44,16 @@ from .ground_truth import SimulatedMap, break_run
 from .laser import Laser, LaserRun, check_pose_sigma, route_poses, scan_poses
 from .options import BumpOptions
 
-__all__ = ["ROUTE_CELL", "broken_plan_map", "plan_route", "simulate_plan_run"]
+__all__ = ["MAX_TOUR_ENTRIES", "ROUTE_CELL", "broken_plan_map", "plan_route", "simulate_plan_run"]
 
 #: Side of a cell of the route grid, metres.
 ROUTE_CELL = 0.2
+#: At most this many (waypoint, route cell) distances are held at once (the tour's
+#: shortest paths from every waypoint: 8 + 4 bytes each, 200 MB): for a plan so large, or
+#: waypoints so close, that there would be more, the blocks that give one waypoint each are
+#: doubled in side until they fit (the six buildings of ``realistic.py --plans`` need 5 % of
+#: it at the default spacing).
+MAX_TOUR_ENTRIES = 2**24
 
 
 def plan_route(
@@ -107,7 +114,11 @@ def plan_route(
     nodes = np.full(inside.shape, -1, dtype=np.int64)
     rows, cols = np.nonzero(inside)
     nodes[rows, cols] = np.arange(rows.size)
-    waypoints = _waypoints(inside, room_pooled, nodes, waypoint_spacing / (factor * res))
+    block = max(1, round(waypoint_spacing / (factor * res)))
+    waypoints = _waypoints(inside, room_pooled, nodes, block)
+    while waypoints.size * rows.size > MAX_TOUR_ENTRIES and waypoints.size > 1:
+        block *= 2
+        waypoints = _waypoints(inside, room_pooled, nodes, block)
     path = _tour(inside, nodes, rows, cols, waypoints, int(rng.integers(waypoints.size)))
     curve = np.stack([cols[path], rows[path]], axis=1).astype(np.int32).reshape(-1, 1, 2)
     simple = cv2.approxPolyDP(curve, 0.5, closed=False).reshape(-1, 2).astype(np.float64)
@@ -259,25 +270,22 @@ def _resolution(plan: OccupancyMap) -> float:
 
 
 def _max_pool(values: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
-    """The largest of each ``factor`` x ``factor`` block (the grid padded with zeros)."""
+    """The largest of each ``factor`` x ``factor`` block (those at the far edges smaller)."""
     if factor == 1:
         return values
     h, w = values.shape
-    padded = np.zeros((-(-h // factor) * factor, -(-w // factor) * factor), dtype=values.dtype)
-    padded[:h, :w] = values
-    blocks = padded.reshape(padded.shape[0] // factor, factor, padded.shape[1] // factor, factor)
-    return np.asarray(blocks.max(axis=(1, 3)))
+    rows = np.maximum.reduceat(values, np.arange(0, h, factor), axis=0)
+    return np.asarray(np.maximum.reduceat(rows, np.arange(0, w, factor), axis=1))
 
 
 def _waypoints(
     inside: NDArray[np.bool_],
     room: NDArray[np.float32],
     nodes: NDArray[np.int64],
-    block: float,
+    side: int,
 ) -> NDArray[np.int64]:
-    """The node of the open cell farthest from the walls in each block of ``block`` cells
+    """The node of the open cell farthest from the walls in each block of ``side`` cells
     (the first in row-major order of ties), in row-major order of the blocks."""
-    side = max(1, round(block))
     r, c = np.nonzero(inside)
     key = (r // side) * (inside.shape[1] // side + 1) + c // side
     order = np.lexsort((-room[r, c], key))  # by block, then farthest first (stable: row-major)
