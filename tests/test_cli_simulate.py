@@ -63,3 +63,14 @@ def test_simulate_a_plan_with_no_room_for_the_robot_is_one_line(tmp_path, capsys
     assert main(args) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no free cell of the plan is 0.4 m from every wall" in err
+
+
+def test_simulate_a_plan_too_fine_for_the_cell_limit_is_one_line(tmp_path, capsys):
+    """The grid follows the plan's extent (``--size`` is ignored): at 0.1 mm a cell the depot
+    would need 312,000 x 163,500 cells, refused by the cell limit, naming the resolution."""
+    plan = Path(__file__).parent / "data" / "depot.yaml"
+    args = ["simulate", "--out", str(tmp_path), "--plan", str(plan), "--resolution", "0.0001"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.splitlines()
+    line = [e for e in err if "error" in e]
+    assert len(line) == 1 and "a grid at 0.0001 m per cell" in line[0] and "--size" not in line[0]

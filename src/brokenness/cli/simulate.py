@@ -125,8 +125,9 @@ def _check_sizes(args: argparse.Namespace) -> None:
         raise ParameterError(f"--resolution must be in [1e-6, 1e4] metres, got {args.resolution}")
     if not (math.isfinite(args.size) and args.size > 0):
         raise ParameterError(f"--size must be a positive number of metres, got {args.size}")
-    side = args.size / args.resolution
-    check_cells(side, side, f"--size {args.size} at --resolution {args.resolution}: a map")
+    if args.log is None and args.plan is None:  # else the run's extent sets the size
+        side = args.size / args.resolution
+        check_cells(side, side, f"--size {args.size} at --resolution {args.resolution}: a map")
     for name in ("bump_radius", "max_rotation", "min_rotation", "bump_probability"):
         value = getattr(args, name)
         if value is not None and not math.isfinite(value):
