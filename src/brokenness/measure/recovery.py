@@ -80,8 +80,8 @@ and refitted on the partition's cells (:func:`~brokenness.measure.refine.refit_t
 the settle step's refit of its own candidates): a hypothesis of a few cells' residual error
 makes fewer cells agree than the twin it should replace, and the settle step judges a
 rival as it is given. After the settle step, the recovery runs
-again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``):
-settled transforms leave clearer suspects.
+again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``), if the tests
+after it changed the partitions: settled transforms leave clearer suspects.
 
 On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
 :func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 145 maps
