@@ -114,11 +114,12 @@ def plan_route(
     nodes = np.full(inside.shape, -1, dtype=np.int64)
     rows, cols = np.nonzero(inside)
     nodes[rows, cols] = np.arange(rows.size)
+    room_open = room_pooled[rows, cols]
     block = max(1, round(waypoint_spacing / (factor * res)))
-    waypoints = _waypoints(inside, room_pooled, nodes, block)
+    waypoints = _waypoints(rows, cols, room_open, inside.shape[1], block)
     while waypoints.size * rows.size > MAX_TOUR_ENTRIES and waypoints.size > 1:
         block *= 2
-        waypoints = _waypoints(inside, room_pooled, nodes, block)
+        waypoints = _waypoints(rows, cols, room_open, inside.shape[1], block)
     path = _tour(inside, nodes, rows, cols, waypoints, int(rng.integers(waypoints.size)))
     curve = np.stack([cols[path], rows[path]], axis=1).astype(np.int32).reshape(-1, 1, 2)
     simple = cv2.approxPolyDP(curve, 0.5, closed=False).reshape(-1, 2).astype(np.float64)
@@ -279,20 +280,20 @@ def _max_pool(values: NDArray[np.float32], factor: int) -> NDArray[np.float32]:
 
 
 def _waypoints(
-    inside: NDArray[np.bool_],
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
     room: NDArray[np.float32],
-    nodes: NDArray[np.int64],
+    width: int,
     side: int,
-) -> NDArray[np.int64]:
-    """The node of the open cell farthest from the walls in each block of ``side`` cells
-    (the first in row-major order of ties), in row-major order of the blocks."""
-    r, c = np.nonzero(inside)
-    key = (r // side) * (inside.shape[1] // side + 1) + c // side
-    order = np.lexsort((-room[r, c], key))  # by block, then farthest first (stable: row-major)
+) -> NDArray[np.intp]:
+    """Of the open cells ``rows, cols`` (row-major, their nodes numbered in that order; ``room``
+    their distance to the walls, on a grid ``width`` cells wide), the node of the one farthest
+    from the walls in each block of ``side`` cells (the first of ties), blocks row-major."""
+    key = (rows // side) * (width // side + 1) + cols // side
+    order = np.lexsort((-room, key))  # by block, then farthest first (stable: row-major)
     first = np.ones(order.size, dtype=bool)
     first[1:] = key[order][1:] != key[order][:-1]
-    best = order[first]
-    return np.asarray(nodes[r[best], c[best]])
+    return np.asarray(order[first])
 
 
 def _tour(
@@ -300,7 +301,7 @@ def _tour(
     nodes: NDArray[np.int64],
     rows: NDArray[np.intp],
     cols: NDArray[np.intp],
-    waypoints: NDArray[np.int64],
+    waypoints: NDArray[np.intp],
     start: int,
 ) -> NDArray[np.int64]:
     """The nodes along the greedy tour of ``waypoints`` from ``waypoints[start]``."""
