@@ -140,18 +140,23 @@ def test_a_partition_bound_is_the_map_bound_of_its_counts() -> None:
     assert counts.doubtful(6.0) == [1, 2]
 
 
+def _relocation_search(broken, points, index):  # noqa: ANN001, ANN202
+    """The relocation's context, registrar and prepared reference for the two rooms' map."""
+    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
+    whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
+    clear = ClearFree(broken, SETTINGS.threshold)
+    around = occupied_around(points, broken.shape)
+    return MapContext(points, broken, index, SETTINGS, around, clear), registrar, whole
+
+
 def test_the_relocation_offers_the_placement_whose_free_space_fits(case) -> None:
     # step 8: A's cells placed at every translation fit at B's place and at home alike, and
     # the free space picks home: offered after the best hypothesis of A's cells registered
     # alone (and before that of their neighbourhood), each rival as found and refitted on
     # A's cells
     broken, points, in_a, found, truth, index = case
-    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
-    whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
-    clear = ClearFree(broken, SETTINGS.threshold)
-    around = occupied_around(points, broken.shape)
-    context = MapContext(points, broken, index, SETTINGS, around, clear)
-    owned = free_space(found, points, clear, index)
+    context, registrar, whole = _relocation_search(broken, points, index)
+    owned = free_space(found, points, context.clear, index)
 
     registered = relocation_rivals(found, context, registrar, whole, [1])
     offered = relocation_rivals(found, context, registrar, whole, [1], owned)
@@ -171,12 +176,8 @@ def test_every_partition_is_placed_at_the_opposite_rotation(case) -> None:
     centre = truth.apply(points[in_a]).mean(axis=0)
     half_turn = RigidTransform(np.pi, *(2.0 * centre)).compose(truth)  # about the centre
     turned = [found[0], Found(half_turn, found[1].members, 1.0, 0.0)]
-    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
-    whole = prepared_reference(registrar, index.reference, index.occupied, True, False)
-    clear = ClearFree(broken, SETTINGS.threshold)
-    around = occupied_around(points, broken.shape)
-    context = MapContext(points, broken, index, SETTINGS, around, clear)
-    owned = free_space(turned, points, clear, index)
+    context, registrar, whole = _relocation_search(broken, points, index)
+    owned = free_space(turned, points, context.clear, index)
     assert relocation_rivals(turned, context, registrar, whole, []) == []  # nothing placed
     offered = relocation_rivals(turned, context, registrar, whole, [], owned)
     assert len(offered) == 2
