@@ -85,17 +85,6 @@ def crop_reference(
     return cropped, c0, r0
 
 
-def _fits(found: list[RigidTransform], truths: list[RigidTransform], labels: Any) -> np.ndarray:
-    """``fits[p, q]``: found partition ``p`` puts true part ``q``'s cells within 3 reference
-    cells (median) of where ``q``'s transform puts them."""
-    fits = np.zeros((len(found), len(truths)), dtype=bool)
-    for q, tq in enumerate(truths):
-        pts = cell_points(labels == q)
-        for p, tp in enumerate(found):
-            fits[p, q] = float(np.median(tp.displacement(tq, pts))) <= realistic.TRUE_CELLS
-    return fits
-
-
 def evaluate(job: tuple[str, float]) -> dict[str, Any]:
     """One case against its reference cropped to ``keep``; its row."""
     warnings.simplefilter("ignore")
@@ -128,7 +117,7 @@ def evaluate(job: tuple[str, float]) -> dict[str, Any]:
     t0 = time.perf_counter()
     res = compute_brokenness(load_map(folder / "map.yaml"), load_map(path))
     found = [p.transform for p in res.partitions]
-    fits = _fits(found, truths, labels)
+    fits = realistic.partition_fits(found, truths, labels)
     seen_fits = fits[:, np.asarray(visible, dtype=bool)]
     matched = False
     if res.measured and len(found) == seen_fits.shape[1]:

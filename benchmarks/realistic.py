@@ -504,13 +504,25 @@ def all_partitions_true(
     """
     if len(found) != len(truths):
         return False
+    fits = partition_fits(found, truths, labels, tolerance)
+    rows, cols = linear_sum_assignment(~fits)
+    return bool(fits[rows, cols].all())
+
+
+def partition_fits(
+    found: list[RigidTransform],
+    truths: list[RigidTransform],
+    labels: NDArray[np.int16],
+    tolerance: float = TRUE_CELLS,
+) -> NDArray[np.bool_]:
+    """``fits[p, q]``: found partition ``p`` puts true part ``q``'s cells (median) within
+    ``tolerance`` reference cells of where ``q``'s true transform puts them."""
     fits = np.zeros((len(found), len(truths)), dtype=bool)
     for q, tq in enumerate(truths):
         pts = cell_points(labels == q)
         for p, tp in enumerate(found):
             fits[p, q] = float(np.median(tp.displacement(tq, pts))) <= tolerance
-    rows, cols = linear_sum_assignment(~fits)
-    return bool(fits[rows, cols].all())
+    return fits
 
 
 def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dict[str, Any]:
