@@ -262,13 +262,24 @@ class _Prepared:
     building: Building | None
 
 
+def _plan_map(name: str) -> OccupancyMap:
+    """The map of building ``name``: a control source of ``cases.py`` (the six of
+    :data:`PLAN_NAMES`) or a plan drawn by ``drawn_buildings.py``."""
+    import cases
+
+    sources = cases.control_sources()
+    if name in sources:
+        return sources[name].build()
+    import drawn_buildings
+
+    return drawn_buildings.DRAWN[name]()
+
+
 @lru_cache(maxsize=4)
 def _prepare(source: str, seed: int) -> _Prepared:
     """The run of a log (seed ignored) or of simulated building ``seed``."""
     if source.startswith(PLAN):
-        import cases
-
-        plan = cases.control_sources()[source[len(PLAN) :]].build()
+        plan = _plan_map(source[len(PLAN) :])
         rng = np.random.default_rng([_crc(source), seed, 11])
         run, extent = simulate_plan_run(plan, rng=rng)
         return _Prepared(run, extent, None)
