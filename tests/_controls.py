@@ -43,6 +43,12 @@ same thing:
   ``sim_d7_s10`` of the held-out sets) in which a small part (6-7 % of the cells) was held at
   a turned twin of its place until the settled partitions were registered alone again, with
   their neighbourhoods (session 18).
+- :func:`split_part_drawn_maps`: the atrium drawn by ``benchmarks/drawn_buildings.py`` (a
+  hall with five corridors 72 degrees apart) broken into 6 partitions (case
+  ``plan-atrium_d5_s0``), in which a part of 21 % of the cells was held as three pieces,
+  each at a twin of its place among the turned arms, and the degree came out 7; its pieces
+  registered with their neighbours give the part's transform, and they are joined (session
+  27).
 
 Each fixture but one takes well under 5 s to build (the Orebro log is read once per process).
 """
@@ -76,6 +82,7 @@ __all__ = [
     "orebro_map",
     "placed_part_real_log_maps",
     "refit_rival_simulated_maps",
+    "split_part_drawn_maps",
     "twin_replaced_real_log_maps",
 ]
 
@@ -210,6 +217,12 @@ def twin_replaced_real_log_maps() -> list[BrokenCase]:
     return [
         _drawn("orebro degree 7 (seed 7, 5 cm, own frame)", Case("orebro", 7, 7, 0.05, 0.05, "run"))
     ]
+
+
+def split_part_drawn_maps() -> list[BrokenCase]:
+    """The drawn atrium at 5 cm, degree 5, in its own frame (see the module docstring)."""
+    case = Case("plan-atrium", 5, 0, 0.05, 0.05, "run")
+    return [_drawn("drawn atrium degree 5 (seed 0, 5 cm, own frame)", case)]
 
 
 def twin_placed_simulated_maps() -> list[BrokenCase]:
