@@ -34,8 +34,6 @@ The recursion, for a map M and a reference R::
         translation at those hypotheses' rotations (measure.placement); the best
         hypotheses, and the placement whose free space fits best, offered as rivals to
         the settle step (taken on agreement, or on free space that fits)
-    join pieces of one part: each partition registered with its neighbours in the map, two
-        neighbours joined under a transform that keeps what each explains (measure.pieces)
     measured only if the map's free space does not cross the reference's walls
         (measure.evidence): else not the same place, no degree
 
@@ -153,14 +151,12 @@ from .partitions import (
     merge_target,
     with_fringe,
 )
-from .pieces import join_pieces
 from .recovery import drop_incoherent, recover, relocation_rivals
 from .result import BrokennessResult, Partition
 from .settle import settle
 from .support import occupied_around
 from .views import (
     candidates_of,
-    cells_candidates,
     exhausted,
     moving_remainder,
     occupied_count,
@@ -350,9 +346,6 @@ def _compute(
         searched = again
         found = _tested(again, context, rivals)
     found, evidence = _relocated(found, context, thorough, whole)
-    joined = join_pieces(found, context, thorough, whole)
-    if joined is not found:  # its contradiction is made anew
-        found, evidence = joined, None
     del whole  # the prepared reference (its distance map): no registration now
     reason, map_ratio, map_bound, ratios = _judge(found, context, evidence)
     found_partitions, labels_working = assemble(
@@ -526,7 +519,16 @@ def _region_candidates(
                     continue
                 if exhausted(registrar):
                     return out
-                out += cells_candidates(registrar, whole, working, rows, cols, cells, settings)
+                states = moving_remainder(
+                    working,
+                    rows,
+                    cols,
+                    cells,
+                    settings.uses_free,
+                    settings.drop_isolated,
+                    settings.as_cells,
+                )
+                out += candidates_of(registrar, whole, states, settings.max_candidates)
     return out
 
 

@@ -17,11 +17,9 @@ from numpy.typing import NDArray
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from ..masking import manhattan_distance_map
 from ..registration.base import Candidate, CellsRegistrar, OccupiedCells, Registrar
-from .options import Settings
 
 __all__ = [
     "candidates_of",
-    "cells_candidates",
     "exhausted",
     "prepared_reference",
     "isolated_cells",
@@ -147,23 +145,6 @@ def candidates_of(
     if isinstance(moving, OccupiedCells):
         return cast(CellsRegistrar, registrar).candidates(prepared, moving, max_candidates)
     return registrar.candidates(prepared, moving, max_candidates)
-
-
-def cells_candidates(
-    registrar: Registrar,
-    prepared: Any,
-    working: OccupancyMap,
-    rows: NDArray[np.intp],
-    cols: NDArray[np.intp],
-    cells: NDArray[np.bool_],
-    settings: Settings,
-) -> list[Candidate]:
-    """The hypotheses of ``registrar`` for the map's cells ``cells`` registered alone
-    (:func:`moving_remainder` of them, ``settings.max_candidates`` at most)."""
-    states = moving_remainder(
-        working, rows, cols, cells, settings.uses_free, settings.drop_isolated, settings.as_cells
-    )
-    return candidates_of(registrar, prepared, states, settings.max_candidates)
 
 
 def exhausted(registrar: Registrar) -> bool:
