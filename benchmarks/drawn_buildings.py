@@ -26,7 +26,7 @@ Nav2 depot, the Willow Garage SLAM map and a simulated building), which must get
 
 Usage::
 
-    python benchmarks/drawn_buildings.py --workers 2   # about 5 minutes on 2 cores
+    python benchmarks/drawn_buildings.py --workers 2   # 4 min on 2 cores, 3 more to draw the maps
 """
 
 from __future__ import annotations
