@@ -46,7 +46,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from brokenness import OccupancyMap, compute_brokenness, load_map
+from brokenness import OccupancyMap
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -163,56 +163,39 @@ def office() -> OccupancyMap:
 DRAWN: dict[str, Callable[[], OccupancyMap]] = {"wings": wings, "atrium": atrium, "office": office}
 
 
-def _control_job(job: tuple[str, str, str, str]) -> dict[str, Any]:
-    """One control: a broken drawn map (its case folder) against another reference (YAML)."""
-    warnings.simplefilter("ignore")
-    case, folder, ref_name, ref_path = job
-    m, r = load_map(Path(folder) / "map.yaml"), load_map(ref_path)
-    t0 = time.perf_counter()
-    res = compute_brokenness(m, r)
-    return {
-        "map": case,
-        "reference": ref_name,
-        "measured": bool(res.measured),
-        "degree": res.degree,
-        "partitions": len(res.partitions),
-        "contradiction": res.contradiction,
-        "contradiction_bound": res.contradiction_bound,
-        "seconds": time.perf_counter() - t0,
-    }
-
-
-def _control_jobs(folders: dict[str, str], cache: Path) -> list[tuple[str, str, str, str]]:
-    """Each broken drawn map at :data:`CONTROL_DEGREES` against the true-run reference of
-    every other drawn building and the references of :data:`CONTROL_REFERENCES`."""
+def _control_jobs(made: list[tuple[Any, str]]) -> list[tuple[str, str, str, str, str]]:
+    """Jobs of :func:`negative_controls.run_pair`: each broken drawn map (its case and case
+    folder) at :data:`CONTROL_DEGREES` against the true-run reference of every other drawn
+    building and the references of :data:`CONTROL_REFERENCES`."""
     import negative_controls as nc
     from cases import control_sources, save_control_maps
 
     available = [n for n in CONTROL_REFERENCES if n in control_sources()]
     refs = {str(k): str(v) for k, v in save_control_maps(available, nc.CACHE).items()}
-    for name in DRAWN:  # a drawn building's reference: its run at degree 0, seed 0
-        folder = folders.get(f"plan-{name}_d0_s0")
-        if folder is not None:
-            refs[name] = str(Path(folder) / "reference.yaml")
+    for case, folder in made:  # a drawn building's reference: its run at degree 0, seed 0
+        if case.degree == 0 and case.seed == 0:
+            refs[case.source[len("plan-") :]] = str(Path(folder) / "reference.yaml")
     jobs = []
-    for case, folder in sorted(folders.items()):
-        building, degree = case[len("plan-") :].split("_d")[0], int(case.split("_d")[1][0])
-        if degree not in CONTROL_DEGREES:
+    for case, folder in sorted(made, key=lambda cf: cf[0].name):
+        if case.degree not in CONTROL_DEGREES:
             continue
-        jobs += [(case, folder, r, p) for r, p in refs.items() if r != building]
+        building, map_path = case.source[len("plan-") :], str(Path(folder) / "map.yaml")
+        jobs += [("control", case.name, r, map_path, p) for r, p in refs.items() if r != building]
     return jobs
 
 
 def _controls_table(rows: list[dict[str, Any]]) -> str:
-    claims = [r for r in rows if r["measured"]]
+    claims = [r for r in rows if r.get("measured")]
+    errors = [r for r in rows if "error" in r]
     bounds = sorted(
         (r["contradiction_bound"], r["map"], r["reference"])
         for r in rows
-        if r["contradiction_bound"] is not None
+        if r.get("contradiction_bound") is not None
     )
     out = [
         f"\nnegative controls: {len(rows)} pairs, {len(claims)} with a degree claimed"
-        + "".join(f"\n  CLAIM {r['map']} vs {r['reference']}: degree {r['degree']}" for r in claims)
+        + "".join(f"\n  CLAIM {r['pair']}: degree {r['degree']}" for r in claims)
+        + "".join(f"\n  ERROR {r['pair']}: {r['error']}" for r in errors)
     ]
     if bounds:
         out.append(
@@ -239,17 +222,19 @@ def main(argv: list[str] | None = None) -> int:
     with ProcessPoolExecutor(workers) as pool:
         made = list(pool.map(realistic._generate_job, [(c, str(args.cache)) for c in cases]))
     failed = [c.name for c, f, _ in made if f is None]
-    folders = {Path(f).name: f for _, f, _ in made if f is not None}
+    drawn = [(c, f) for c, f, _ in made if f is not None]
     print(
         f"{len(cases)} cases ({len(failed)} could not be drawn: {', '.join(failed) or '-'}); "
         f"generation {time.perf_counter() - t0:.0f} s (cache {args.cache})",
         flush=True,
     )
     with ProcessPoolExecutor(workers) as pool:
-        rows = list(pool.map(realistic._evaluate_job, list(folders.values())))
+        rows = list(pool.map(realistic._evaluate_job, [f for _, f in drawn]))
         controls: list[dict[str, Any]] = []
         if not args.no_controls:
-            controls = list(pool.map(_control_job, _control_jobs(folders, args.cache)))
+            import negative_controls as nc
+
+            controls = list(pool.map(nc.run_pair, _control_jobs(drawn)))
     print(realistic.tables(rows))
     print(realistic.failures(rows))
     if controls:
