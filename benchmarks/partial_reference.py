@@ -39,7 +39,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -119,10 +118,9 @@ def evaluate(job: tuple[str, float]) -> dict[str, Any]:
     found = [p.transform for p in res.partitions]
     fits = realistic.partition_fits(found, truths, labels)
     seen_fits = fits[:, np.asarray(visible, dtype=bool)]
-    matched = False
-    if res.measured and len(found) == seen_fits.shape[1]:
-        rows, cols = linear_sum_assignment(~seen_fits)
-        matched = bool(seen_fits[rows, cols].all())
+    matched = (
+        bool(res.measured) and len(found) == seen_fits.shape[1] and realistic.one_to_one(seen_fits)
+    )
     row.update(
         seconds=time.perf_counter() - t0,
         measured=bool(res.measured),

@@ -515,7 +515,12 @@ def all_partitions_true(
     """
     if len(found) != len(truths):
         return False
-    fits = partition_fits(found, truths, labels, tolerance)
+    return one_to_one(partition_fits(found, truths, labels, tolerance))
+
+
+def one_to_one(fits: NDArray[np.bool_]) -> bool:
+    """Whether the found partitions (rows of ``fits``) and the true parts (columns) can be
+    paired one to one, each pair fitting (a square ``fits`` of :func:`partition_fits`)."""
     rows, cols = linear_sum_assignment(~fits)
     return bool(fits[rows, cols].all())
 
