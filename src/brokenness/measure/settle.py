@@ -44,7 +44,10 @@ mostly holds one. So :func:`settle`:
    them. A rival is judged by the same count; a partition that had at least ``min_cells``
    cells no other explains and has fewer with the rival in is dropped (a part may be held
    by two wrong placements), its cells counted as lost; and the gain must exceed what chance
-   could give on the cells the two contest (the shift search's margin, below);
+   could give on the cells the two contest (the shift search's margin, below), or come
+   with a partition's free space that crosses the reference's walls significantly less
+   often (:class:`_FreeSpaceTest`), which, when no replacement adds a cell, also breaks a
+   tie of the count;
 4. when no replacement adds a cell, *splits* a partition in two if its refits say it holds
    two parts: the compromise of two parts at one rotation, shifted against each other (a
    pure-shift bump), is refitted to one part on that part's tiles and to the other on the
@@ -200,6 +203,7 @@ def settle(
         covered = _column_counts(agree)
         explained = int(np.count_nonzero(covered))
         best_gain, best, emptied = 0, None, _NO_CELLS
+        tie: tuple[tuple[int, int], NDArray[np.intp]] | None = None  # the first clearing tie
         alone = _row_counts(agree & (covered == 1))  # cells only each explains
         for j in range(len(transforms)):
             mine = np.flatnonzero(seeds_arr == j)
@@ -214,7 +218,7 @@ def settle(
                 if int(gains[k]) > best_gain:
                     best_gain, best, emptied = int(gains[k]), (j, int(near[k])), _NO_CELLS
             for c in mine[mine >= local]:
-                gain, redundant = _rival_gain(
+                offer = _rival_gain(
                     j,
                     offered[c],
                     agree,
@@ -223,9 +227,17 @@ def settle(
                     p0,
                     settings,
                     None if free is None else free.clears(j, transforms[j], candidates[c]),
+                    ties=tie is None and best is None,
                 )
+                if offer is None:
+                    continue
+                gain, redundant = offer
                 if gain > best_gain:
                     best_gain, best, emptied = gain, (j, int(c)), redundant
+                elif gain == 0 and tie is None:
+                    tie = (j, int(c)), redundant
+        if best is None and tie is not None:  # no rival adds a cell: a tie that clears
+            best, emptied = tie
         if best is not None:
             j, c = best
             transforms[j], agree[j] = candidates[c], offered[c]
@@ -310,7 +322,8 @@ def _rival_gain(
     p0: float,
     settings: Settings,
     clears: Callable[[], bool] | None = None,
-) -> tuple[int, NDArray[np.intp]]:
+    ties: bool = False,
+) -> tuple[int, NDArray[np.intp]] | None:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
     gains, and the partitions it leaves redundant (step 3). ``without`` is what the
     partitions explain without ``j`` (the same for every rival of ``j``): per cell how many
@@ -326,9 +339,17 @@ def _rival_gain(
     the two contest (the shift search's margin), or, if it is positive but smaller, come
     with the other kind of evidence, ``clears()``: the partition's free space crosses the
     reference's walls significantly less often under the rival
-    (:meth:`_FreeSpaceTest.clears`); else ``0``. (A version that also credited each dropped
-    partition with the smallest partition's cells, a cost per partition, replaced two small
-    partitions by one transform that explained fewer cells: a degree one short.)
+    (:meth:`_FreeSpaceTest.clears`). With ``ties``, a rival that explains exactly as many
+    cells (gain ``0``) is offered too when it clears the free space: the count cannot tell
+    the two placements apart, the free space can (a small part at a twin of its room, whose
+    true transform the recovery found: in a drawn office at degree 7, the true place of a
+    part of 6 % explained as many cells, one more or less as other partitions moved, while
+    its free space crossed the reference's walls significantly less often); :func:`settle`
+    takes such a tie only when no rival adds a cell. A tie lowers its partition's rate
+    significantly and a gain raises the count, so no sequence of replacements returns to
+    where it started. ``None``: the rival is not taken. (A version that also credited each
+    dropped partition with the smallest partition's cells, a cost per partition, replaced
+    two small partitions by one transform that explained fewer cells: a degree one short.)
     """
     rest, others, explained = without
     after = rest + offered
@@ -343,7 +364,9 @@ def _rival_gain(
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
     if gain > margin or (gain > 0 and clears is not None and clears()):
         return gain, redundant
-    return 0, _NO_CELLS
+    if ties and gain == 0 and clears is not None and clears():
+        return 0, redundant  # a tie: taken if no rival adds a cell
+    return None
 
 
 class _FreeSpaceTest:
