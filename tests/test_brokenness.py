@@ -288,6 +288,9 @@ def test_empty_and_bad_inputs(maps):
     # an absurd threshold is refused, and the message names the value given
     with pytest.raises(ParameterError, match=r"threshold 1000000\.0 implies a neighbourhood"):
         compute_brokenness(ref, ref, threshold=1e6)
+    with pytest.raises(ParameterError) as huge:  # one short line, not a 300-digit number
+        compute_brokenness(ref, ref, threshold=1e300)
+    assert len(str(huge.value)) < 200 and "\n" not in str(huge.value)
     with pytest.raises(ParameterError):
         compute_brokenness(ref, ref, method="magic")
     with pytest.raises(MapError):

@@ -189,7 +189,7 @@ def check_threshold(threshold: float, reference_shape: tuple[int, int] | None = 
     if side * side > limit:
         largest = (math.isqrt(limit) - 1) // 4
         raise ParameterError(
-            f"threshold {threshold!r} implies a neighbourhood of {side:.0f}x{side:.0f} cells, "
+            f"threshold {threshold!r} implies a neighbourhood of {side:.6g}x{side:.6g} cells, "
             f"more than the limit of {limit} cells (at most {largest})"
         )
     if reference_shape is not None:
