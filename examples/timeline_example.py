@@ -12,7 +12,9 @@ the repaired map. The script writes
 - ``OUT/timeline.csv`` and ``OUT/timeline.png`` (also copied to ``examples/timeline.png``
   with ``--update-readme-plot``),
 
-and prints the events. The same from the command line, once the bag is written::
+and prints the events. Writing and reading bags needs the optional package ``rosbags``
+(``pip install ".[rosbags]"``; without it the script says so in one line). The same from
+the command line, once the bag is written::
 
     brokenness timeline OUT/run.bag OUT/reference.yaml --csv OUT/timeline.csv --plot OUT/t.png
 """
@@ -21,9 +23,10 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import sys
 from pathlib import Path
 
-from brokenness import save_map, timeline
+from brokenness import BrokennessError, save_map, timeline
 from brokenness.io.rosbag_write import write_bag_maps
 from brokenness.simulation.slam_run import simulate_slam_run
 from brokenness.timeline import plot_timeline, write_timeline_csv
@@ -69,4 +72,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except BrokennessError as exc:  # a missing optional package, bad input: one line
+        sys.exit(f"timeline_example: error: {exc}")

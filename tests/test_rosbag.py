@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -222,3 +223,31 @@ def test_cli_compute_with_topic(tmp_path, capsys):
     code = main(["compute", str(bag), str(bag), "--topic", "/nope"])
     err = capsys.readouterr().err
     assert code == 2 and "no topic '/nope'" in err and err.count("\n") == 1
+
+
+def test_without_rosbags_a_bag_is_refused_with_the_extra_to_install(tmp_path, monkeypatch, capsys):
+    """Without the optional package, reading and writing a bag say which extra to install
+    (a typed error; one line and status 2 on the command line), not a traceback."""
+    from brokenness.errors import MissingDependencyError
+    from brokenness.io.rosbag import iter_bag_maps
+    from brokenness.io.rosbag_write import write_bag_maps
+
+    bag = write_ros1(tmp_path / "x.bag", [("/map", GRID, grid_msg(TS1, top_first(0)), 1)])
+    for name in [n for n in sys.modules if n == "rosbags" or n.startswith("rosbags.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "rosbags", None)  # import rosbags -> ImportError
+    hint = r"needs the optional package rosbags: pip install 'brokenness\[rosbags\]'"
+    with pytest.raises(MissingDependencyError, match="reading ROS bags " + hint):
+        load_bag_map(bag)
+    with pytest.raises(MissingDependencyError, match="reading ROS bags " + hint):
+        next(iter_bag_maps(bag))
+    m = brokenness.OccupancyMap(expected_states(top_first(0)), 0.05, (0.0, 0.0, 0.0))
+    with pytest.raises(MissingDependencyError, match="writing ROS bags " + hint):
+        write_bag_maps(tmp_path / "y.bag", [(1, m)])
+    assert not (tmp_path / "y.bag").exists()
+    reference = tmp_path / "ref.yaml"
+    brokenness.save_map(m, reference)
+    capsys.readouterr()
+    assert main(["timeline", str(bag), str(reference)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'brokenness[rosbags]'" in err

@@ -31,6 +31,7 @@ from .errors import (
     MapError,
     MapFormatError,
     MapSizeError,
+    MissingDependencyError,
     NothingFoundWarning,
     ParameterError,
 )
@@ -65,6 +66,7 @@ __all__ = [
     "MapFormatError",
     "MapSizeError",
     "MapWarning",
+    "MissingDependencyError",
     "NothingFoundWarning",
     "OccupancyMap",
     "ParameterError",

@@ -11,6 +11,7 @@ __all__ = [
     "MapError",
     "MapFormatError",
     "MapSizeError",
+    "MissingDependencyError",
     "NothingFoundWarning",
     "ParameterError",
 ]
@@ -34,6 +35,11 @@ class MapSizeError(MapError):
 
 class ParameterError(BrokennessError, ValueError):
     """An option passed to an algorithm is out of its valid range."""
+
+
+class MissingDependencyError(BrokennessError, ImportError):
+    """A feature needs an optional package that is not installed (the message says which
+    extra to install, e.g. ``pip install 'brokenness[rosbags]'``)."""
 
 
 class NothingFoundWarning(UserWarning):

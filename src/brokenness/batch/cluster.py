@@ -5,17 +5,18 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from ..errors import ParameterError
+from ..errors import MissingDependencyError, ParameterError
 
 __all__ = ["dask_client", "import_distributed"]
 
 
 def import_distributed() -> Any:
-    """The ``distributed`` package, or a :class:`ParameterError` that says how to get it."""
+    """The ``distributed`` package, or a :class:`~brokenness.errors.MissingDependencyError`
+    that says how to get it."""
     try:
         import distributed
     except ImportError:
-        raise ParameterError(
+        raise MissingDependencyError(
             "running on a Dask cluster needs the optional packages dask and distributed: "
             "pip install 'brokenness[dask]'"
         ) from None

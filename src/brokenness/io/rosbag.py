@@ -42,7 +42,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BrokennessError, MapError, MapFormatError, ParameterError
+from ..errors import (
+    BrokennessError,
+    MapError,
+    MapFormatError,
+    MissingDependencyError,
+    ParameterError,
+)
 from ..grid import OccupancyMap
 from ..limits import MAX_TEXT_BYTES, check_cells, resolution_in_range
 from ._files import as_path, check_regular, one_line, read_file_bytes
@@ -74,6 +80,18 @@ def quaternion_yaw(x: float, y: float, z: float, w: float) -> float:
     ``(0, 0, sin(t/2), cos(t/2))`` the result is ``t``.
     """
     return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def require_rosbags(what: str) -> None:
+    """Raise :class:`~brokenness.errors.MissingDependencyError` unless the optional package
+    ``rosbags`` (the extra ``brokenness[rosbags]``) can be imported; ``what`` names the
+    feature in the message ("reading ROS bags")."""
+    try:
+        import rosbags  # noqa: F401
+    except ImportError:
+        raise MissingDependencyError(
+            f"{what} needs the optional package rosbags: pip install 'brokenness[rosbags]'"
+        ) from None
 
 
 def _typestore() -> Any:
@@ -304,6 +322,8 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
         anything is opened), no such topic, no message on the topic.
     MapFormatError
         Corrupt or unreadable bag, a topic of another message type, an inconsistent grid.
+    MissingDependencyError
+        If the optional package ``rosbags`` is not installed.
 
     Examples
     --------
@@ -316,6 +336,7 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     if not isinstance(topic, str) or not topic:
         raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
     suffix = p.suffix.lower()
+    require_rosbags("reading ROS bags")
     try:
         if p.is_dir():
             if not (p / "metadata.yaml").is_file():
@@ -461,12 +482,15 @@ def iter_bag_maps(
         ParameterError for these).
     MapFormatError
         Corrupt bag, a topic of another message type, an inconsistent grid.
+    MissingDependencyError
+        If the optional package ``rosbags`` is not installed.
     """
     p = check_bag(path)
     source = str(path)
     if not isinstance(topic, str) or not topic:
         raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
     period_ns = thinning(every, period, MapError)
+    require_rosbags("reading ROS bags")
     try:
         with _open_raw(p, topic, source) as (raw, deserialize, _total):
             for i, stamp, data in _thinned(raw, every, period_ns):

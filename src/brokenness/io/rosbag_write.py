@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..grid import FREE, OCCUPIED, OccupancyMap
-from .rosbag import OCCUPANCY_GRID
+from .rosbag import OCCUPANCY_GRID, require_rosbags
 
 __all__ = ["grid_message", "write_bag_maps"]
 
@@ -78,7 +78,13 @@ def write_bag_maps(
     Returns
     -------
     Path
+
+    Raises
+    ------
+    MissingDependencyError
+        If the optional package ``rosbags`` is not installed.
     """
+    require_rosbags("writing ROS bags")
     from rosbags.typesys import Stores, get_typestore
 
     p = Path(os.fspath(path))
