@@ -299,3 +299,23 @@ def test_unreachable_scheduler_is_one_line(maps, tmp_path):
     assert str(info.value).startswith("cannot connect to the Dask scheduler at tcp://127.0.0.1:9")
     assert "\n" not in str(info.value)
     assert not list(tmp_path.glob("*.zip"))
+
+
+def test_without_distributed_a_cluster_batch_says_what_to_install(
+    cli, maps, tmp_path, capsys, monkeypatch
+):
+    """Without the optional packages, a batch on a Dask cluster stops before any output with
+    a MissingDependencyError naming the extra (one line, status 2 on the command line)."""
+    import sys
+
+    for name in [n for n in sys.modules if n == "distributed" or n.startswith("distributed.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    with pytest.raises(brokenness.MissingDependencyError, match=r"brokenness\[dask\]"):
+        run_batch(maps / "manifest.csv", tmp_path / "o", local_cluster=True, progress=False)
+    assert not (tmp_path / "o").exists()
+    capsys.readouterr()
+    args = ["batch", str(maps / "manifest.csv"), "--out", str(tmp_path / "c")]
+    assert cli([*args, "--local-cluster"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install 'brokenness[dask]'" in err

@@ -979,6 +979,10 @@ def run_batch(
     _check_overlays(opts.overlays)
     if os.environ.get(WORKER_MEMORY_ENV):  # a bad size: one line, before any work, whatever
         parse_memory(os.environ[WORKER_MEMORY_ENV])  # the number of workers
+    if scheduler or local_cluster:  # a missing package: one line, before any output
+        from .cluster import import_distributed
+
+        import_distributed()
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
