@@ -343,13 +343,13 @@ def _rival_gain(
     cells (gain ``0``) is offered too when it clears the free space: the count cannot tell
     the two placements apart, the free space can (a small part at a twin of its room, whose
     true transform the recovery found: in a drawn office at degree 7, the true place of a
-    part of 6 % explained as many cells, one more or less as other partitions moved, while
+    part of 7 % explained as many cells, one more or less as other partitions moved, while
     its free space crossed the reference's walls significantly less often); :func:`settle`
-    takes such a tie only when no rival adds a cell. A tie lowers its partition's rate
-    significantly and a gain raises the count, so no sequence of replacements returns to
-    where it started. ``None``: the rival is not taken. (A version that also credited each
-    dropped partition with the smallest partition's cells, a cost per partition, replaced
-    two small partitions by one transform that explained fewer cells: a degree one short.)
+    takes such a tie only when no rival adds a cell (and, as every replacement, uses each
+    candidate once, so the step ends). ``None``: the rival is not taken. (A version that
+    also credited each dropped partition with the smallest partition's cells, a cost per
+    partition, replaced two small partitions by one transform that explained fewer cells: a
+    degree one short.)
     """
     rest, others, explained = without
     after = rest + offered
