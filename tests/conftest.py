@@ -1,6 +1,10 @@
-"""Fixtures shared by the tests of the measure's stages on building 31's corner."""
+"""Fixtures shared by the tests: building 31's corner for the measure's stages, and a
+package hidden as if it were not installed."""
 
 from __future__ import annotations
+
+import sys
+from collections.abc import Callable
 
 import pytest
 from _breaking import building_31_corner
@@ -19,3 +23,16 @@ def corner() -> OccupancyMap:
 def corner_index(corner: OccupancyMap) -> ReferenceIndex:
     """The :class:`ReferenceIndex` of :func:`corner`."""
     return ReferenceIndex.build(corner)
+
+
+@pytest.fixture
+def hide_package(monkeypatch: pytest.MonkeyPatch) -> Callable[[str], None]:
+    """``hide_package(name)``: until the test ends, importing ``name`` (or a submodule of it)
+    raises ImportError, as when the optional package is not installed."""
+
+    def hide(name: str) -> None:
+        for module in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+            monkeypatch.delitem(sys.modules, module)
+        monkeypatch.setitem(sys.modules, name, None)
+
+    return hide

@@ -302,15 +302,11 @@ def test_unreachable_scheduler_is_one_line(maps, tmp_path):
 
 
 def test_without_distributed_a_cluster_batch_says_what_to_install(
-    cli, maps, tmp_path, capsys, monkeypatch
+    cli, maps, tmp_path, capsys, hide_package
 ):
     """Without the optional packages, a batch on a Dask cluster stops before any output with
     a MissingDependencyError naming the extra (one line, status 2 on the command line)."""
-    import sys
-
-    for name in [n for n in sys.modules if n == "distributed" or n.startswith("distributed.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    hide_package("distributed")
     with pytest.raises(brokenness.MissingDependencyError, match=r"brokenness\[dask\]"):
         run_batch(maps / "manifest.csv", tmp_path / "o", local_cluster=True, progress=False)
     assert not (tmp_path / "o").exists()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -225,7 +224,7 @@ def test_cli_compute_with_topic(tmp_path, capsys):
     assert code == 2 and "no topic '/nope'" in err and err.count("\n") == 1
 
 
-def test_without_rosbags_a_bag_is_refused_with_the_extra_to_install(tmp_path, monkeypatch, capsys):
+def test_without_rosbags_a_bag_is_refused_with_the_extra_to_install(tmp_path, hide_package, capsys):
     """Without the optional package, reading and writing a bag say which extra to install
     (a typed error; one line and status 2 on the command line), not a traceback."""
     from brokenness.errors import MissingDependencyError
@@ -233,9 +232,7 @@ def test_without_rosbags_a_bag_is_refused_with_the_extra_to_install(tmp_path, mo
     from brokenness.io.rosbag_write import write_bag_maps
 
     bag = write_ros1(tmp_path / "x.bag", [("/map", GRID, grid_msg(TS1, top_first(0)), 1)])
-    for name in [n for n in sys.modules if n == "rosbags" or n.startswith("rosbags.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "rosbags", None)  # import rosbags -> ImportError
+    hide_package("rosbags")
     hint = r"needs the optional package rosbags: pip install 'brokenness\[rosbags\]'"
     with pytest.raises(MissingDependencyError, match="reading ROS bags " + hint):
         load_bag_map(bag)

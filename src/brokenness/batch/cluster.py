@@ -5,7 +5,8 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from ..errors import MissingDependencyError, ParameterError
+from .._optional import require
+from ..errors import ParameterError
 
 __all__ = ["dask_client", "import_distributed"]
 
@@ -13,14 +14,9 @@ __all__ = ["dask_client", "import_distributed"]
 def import_distributed() -> Any:
     """The ``distributed`` package, or a :class:`~brokenness.errors.MissingDependencyError`
     that says how to get it."""
-    try:
-        import distributed
-    except ImportError:
-        raise MissingDependencyError(
-            "running on a Dask cluster needs the optional packages dask and distributed: "
-            "pip install 'brokenness[dask]'"
-        ) from None
-    return distributed
+    return require(
+        "distributed", "running on a Dask cluster", "packages dask and distributed", "dask"
+    )
 
 
 def dask_client(

@@ -42,13 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import (
-    BrokennessError,
-    MapError,
-    MapFormatError,
-    MissingDependencyError,
-    ParameterError,
-)
+from .._optional import require
+from ..errors import BrokennessError, MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..limits import MAX_TEXT_BYTES, check_cells, resolution_in_range
 from ._files import as_path, check_regular, one_line, read_file_bytes
@@ -86,12 +81,7 @@ def require_rosbags(what: str) -> None:
     """Raise :class:`~brokenness.errors.MissingDependencyError` unless the optional package
     ``rosbags`` (the extra ``brokenness[rosbags]``) can be imported; ``what`` names the
     feature in the message ("reading ROS bags")."""
-    try:
-        import rosbags  # noqa: F401
-    except ImportError:
-        raise MissingDependencyError(
-            f"{what} needs the optional package rosbags: pip install 'brokenness[rosbags]'"
-        ) from None
+    require("rosbags", what, "package rosbags", "rosbags")
 
 
 def _typestore() -> Any:
