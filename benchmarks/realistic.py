@@ -365,17 +365,22 @@ class Drawn:
         return [frame_truth(m, r, e, self.frame) for e in self.errors]
 
 
-def draw_case(case: Case, rejected: list[str] | None = None) -> Drawn | None:
+def draw_case(
+    case: Case, rejected: list[str] | None = None, first_attempt: int = 0
+) -> Drawn | None:
     """Draw ``case`` (steps 1-5 of the module docstring); None if no draw fitted.
 
-    ``rejected``, when given, receives why each rejected draw was rejected.
+    ``rejected``, when given, receives why each rejected draw was rejected. Each attempt
+    draws its own bumps (seeded by the case and the attempt), so starting at
+    ``first_attempt``, the attempt a case's ``truth.json`` records, draws the same case
+    without the rejected attempts before it (a test's shortcut).
     """
     prep = _prepare(case.source, case.seed)
     ref_run, index = _true_reference(case.source, case.seed, case.reference_resolution)
     run = prep.run
     n_scans = len(run.true_poses)
     why: list[str] = [] if rejected is None else rejected
-    for attempt in range(MAX_ATTEMPTS):
+    for attempt in range(first_attempt, MAX_ATTEMPTS):
         bumps = _bumps(case, n_scans, attempt)
         broken, expected, parts, labels0, judged, bp = broken_map_from_run(
             run,
