@@ -248,3 +248,26 @@ def test_without_rosbags_a_bag_is_refused_with_the_extra_to_install(tmp_path, hi
     assert main(["timeline", str(bag), str(reference)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "pip install 'brokenness[rosbags]'" in err
+
+
+@pytest.mark.parametrize("x", [1e300, -2e9, math.nan, math.inf])
+def test_an_origin_out_of_range_is_refused_as_in_a_map_yaml(tmp_path, x):
+    """The origin of a bag's grid has the range of a YAML origin (|value| <= 1e9, finite)."""
+    msg = grid_msg(TS1, top_first(0), origin=(x, -11.0, 0.0))
+    bag = write_ros1(tmp_path / "far.bag", [("/map", GRID, msg, 1)])
+    with pytest.raises(MapFormatError, match=r"origin .* is out of range") as info:
+        load_bag_map(bag)
+    assert "\n" not in str(info.value) and len(str(info.value)) < 300
+    near = write_ros1(tmp_path / "near.bag", [("/map", GRID, grid_msg(TS1, top_first(0)), 1)])
+    assert load_bag_map(near).origin == pytest.approx((1.5, -2.25, 0.7))
+
+
+def test_a_grid_of_only_minus_one_zero_and_one_is_read_as_percent(tmp_path):
+    """A bag's grid is always OccupancyGrid percent values: a grid that happens to hold only
+    -1, 0 and 1 must read 1 as 1 % (free), not as the occupied cell state (an array's rule
+    for such values, OccupancyMap.from_array)."""
+    values = np.zeros((5, 6), np.int8)
+    values[0, :] = 1
+    values[4, :] = -1
+    bag = write_ros1(tmp_path / "run.bag", [("/map", GRID, grid_msg(TS1, values), 1)])
+    np.testing.assert_array_equal(load_bag_map(bag).states, expected_states(values))

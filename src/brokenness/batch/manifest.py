@@ -21,6 +21,11 @@ or ``none``, as ``brokenness batch --overlays``, which wins)::
     overlays: fast
     pairs:
       - {map: runs/gmapping_0.1_1.pgm, system: gmapping, noise: 0.1, seed: 1}
+
+A YAML manifest is read by the package's one strict YAML reader
+(:func:`brokenness.io._yaml.parse_yaml`): duplicate keys and aliases (``*name``) are refused
+(``defaults`` does what anchors would). Messages echo values shortened
+(:func:`brokenness.io._files.shown`), so a hostile manifest cannot make them long.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import BrokennessError
+from ..io._files import REASON_CHARS, one_line, path_text, read_file_bytes, shown
 from ..limits import MAX_MANIFEST_BYTES
 
 __all__ = [
@@ -120,7 +126,7 @@ class Pair:
                 out["seed"] = int(self.labels["seed"])
             except ValueError:
                 raise ManifestError(
-                    f"row {self.row}: seed must be an integer, got {self.labels['seed']!r}"
+                    f"row {self.row}: seed must be an integer, got {shown(self.labels['seed'])}"
                 ) from None
         return out
 
@@ -195,8 +201,6 @@ def _make_pair(entry: Mapping[str, Any], row: int, base: Path, where: str) -> Pa
 
 def _read_text(path: Path) -> str:
     """The manifest's text: a regular file of at most MAX_MANIFEST_BYTES, UTF-8."""
-    from ..io._files import read_file_bytes
-
     try:
         data = read_file_bytes(path, MAX_MANIFEST_BYTES, "manifest")
     except BrokennessError as exc:
@@ -204,14 +208,15 @@ def _read_text(path: Path) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError:
-        raise ManifestError(f"{path}: not a text file (not UTF-8)") from None
+        raise ManifestError(f"{path_text(path)}: not a text file (not UTF-8)") from None
 
 
 def _read_csv(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     try:
         return _parse_csv(path, _read_text(path))
     except csv.Error as exc:  # NUL bytes, a field over csv.field_size_limit()...
-        raise ManifestError(f"{path}: invalid CSV ({' '.join(str(exc).split())})") from None
+        reason = one_line(exc, REASON_CHARS)
+        raise ManifestError(f"{path_text(path)}: invalid CSV ({reason})") from None
 
 
 def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -220,27 +225,28 @@ def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, A
         for n, ln in enumerate(text.splitlines(), start=1)
         if ln.strip() and not ln.lstrip().startswith("#")
     ]
+    name = path_text(path)
     if not numbered:
-        raise ManifestError(f"{path}: empty manifest")
+        raise ManifestError(f"{name}: empty manifest")
     reader = csv.DictReader([ln for _n, ln in numbered])
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [c for c in _PATH_COLUMNS if c not in header]
     if missing:
         raise ManifestError(
-            f"{path}: the header must name the columns 'map' and 'reference' "
-            f"(missing {', '.join(repr(m) for m in missing)}; header is {','.join(header)})"
+            f"{name}: the header must name the columns 'map' and 'reference' "
+            f"(missing {', '.join(repr(m) for m in missing)}; header is {shown(header)})"
         )
     if len(set(header)) != len(header):
-        raise ManifestError(f"{path}: duplicate column names in the header")
+        raise ManifestError(f"{name}: duplicate column names in the header")
     rows = []
     for i, raw in enumerate(reader, start=1):
         line = numbered[reader.line_num - 1][0]  # the file's line (comments, blanks skipped)
         if None in raw:
-            raise ManifestError(f"{path} row {i} (line {line}): more values than columns")
+            raise ManifestError(f"{name} row {i} (line {line}): more values than columns")
         if any(v is None for v in raw.values()):  # DictReader fills missing fields with None
             given = sum(v is not None for v in raw.values())
             raise ManifestError(
-                f"{path} row {i} (line {line}): fewer values than columns ({given} of "
+                f"{name} row {i} (line {line}): fewer values than columns ({given} of "
                 f"{len(header)}; leave a value empty with a comma)"
             )
         rows.append({k.strip(): v for k, v in raw.items()})
@@ -250,8 +256,9 @@ def _parse_csv(path: Path, text: str) -> tuple[list[dict[str, Any]], dict[str, A
 def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | None]:
     from ..io._yaml import parse_yaml
 
+    name = path_text(path)
     try:
-        doc = parse_yaml(_read_text(path), str(path))
+        doc = parse_yaml(_read_text(path), name)
     except ManifestError:
         raise
     except BrokennessError as exc:  # duplicate keys, bad tagged values, nesting too deep...
@@ -263,7 +270,7 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | 
         unknown = set(doc) - {"pairs", "defaults", "options", "overlays"}
         if unknown:
             raise ManifestError(
-                f"{path}: unknown top-level key(s) {sorted(map(str, unknown))}; "
+                f"{name}: unknown top-level key(s) {shown(sorted(map(str, unknown)))}; "
                 "expected pairs, defaults, options, overlays"
             )
         if doc.get("overlays") is not None:
@@ -272,15 +279,15 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | 
         defaults = doc.get("defaults") or {}
         options = doc.get("options") or {}
         if not isinstance(defaults, Mapping) or not isinstance(options, Mapping):
-            raise ManifestError(f"{path}: 'defaults' and 'options' must be mappings")
+            raise ManifestError(f"{name}: 'defaults' and 'options' must be mappings")
     else:
         entries = doc
     if not isinstance(entries, list):
-        raise ManifestError(f"{path}: expected a list of pairs (each with map and reference)")
+        raise ManifestError(f"{name}: expected a list of pairs (each with map and reference)")
     rows = []
     for i, entry in enumerate(entries, start=1):
         if not isinstance(entry, Mapping):
-            raise ManifestError(f"{path} row {i}: a pair must be a mapping, got {entry!r}")
+            raise ManifestError(f"{name} row {i}: a pair must be a mapping, got {shown(entry)}")
         rows.append({**defaults, **entry})
     return rows, dict(options), overlays
 
@@ -288,7 +295,8 @@ def _read_yaml(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any], str | 
 def _overlays(value: Any, path: Path) -> str:
     if not isinstance(value, str) or value not in OVERLAY_KINDS:
         raise ManifestError(
-            f"{path}: overlays must be one of {', '.join(OVERLAY_KINDS)}, got {value!r}"
+            f"{path_text(path)}: overlays must be one of {', '.join(OVERLAY_KINDS)}, "
+            f"got {shown(value)}"
         )
     return value
 
@@ -309,7 +317,7 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     ManifestError
         If the file is missing, not a regular file, larger than
         :data:`~brokenness.limits.MAX_MANIFEST_BYTES`, of an unknown kind, invalid CSV or
-        YAML (duplicate keys, bad tagged values), has no ``map``/``reference`` columns,
+        YAML (duplicate keys, aliases, bad tagged values), has no ``map``/``reference`` columns,
         has a row without them, no pairs, or the same pair twice.
 
     Examples
@@ -318,8 +326,9 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     >>> [p.labels["system"] for p in m.pairs]  # doctest: +SKIP
     """
     p = Path(path)
+    name = path_text(p)
     if not os.path.lexists(p):
-        raise ManifestError(f"{p}: no such manifest file")
+        raise ManifestError(f"{name}: no such manifest file")
     suffix = p.suffix.lower()
     overlays = None
     if suffix == ".csv":
@@ -327,17 +336,17 @@ def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     elif suffix in (".yaml", ".yml"):
         rows, options, overlays = _read_yaml(p)
     else:
-        raise ManifestError(f"{p}: a manifest must be .csv, .yaml or .yml")
-    base = p.resolve().parent
-    pairs = tuple(_make_pair(r, i, base, str(p)) for i, r in enumerate(rows, start=1))
+        raise ManifestError(f"{name}: a manifest must be .csv, .yaml or .yml")
+    base = _absolute(p).parent
+    pairs = tuple(_make_pair(r, i, base, name) for i, r in enumerate(rows, start=1))
     if not pairs:
-        raise ManifestError(f"{p}: the manifest lists no pairs")
+        raise ManifestError(f"{name}: the manifest lists no pairs")
     seen: dict[str, int] = {}
     for pair in pairs:
         pair.compute_options()  # validate seeds early
         if pair.id in seen:
             raise ManifestError(
-                f"{p}: rows {seen[pair.id]} and {pair.row} are the same pair "
+                f"{name}: rows {seen[pair.id]} and {pair.row} are the same pair "
                 "(same paths and labels)"
             )
         seen[pair.id] = pair.row

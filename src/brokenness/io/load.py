@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
 from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MIN_RESOLUTION, resolution_in_range
-from ._files import as_path, check_regular
+from ._files import as_path, check_regular, path_text, shown
 from .arrays import ROW_ORDERS, decode_npy
 from .pixels import (
     DEFAULT_FREE_THRESH,
@@ -49,10 +49,15 @@ PathLike = str | os.PathLike[str]
 
 
 def is_rosbag(path: Path) -> bool:
-    """True for a ROS 1 bag, a rosbag2 storage file, or a rosbag2 folder (has metadata.yaml)."""
+    """True for a ROS 1 bag, a rosbag2 storage file, or a rosbag2 folder (has metadata.yaml).
+
+    Never raises: a path that cannot be examined (a folder on the way that cannot be entered,
+    an invalid name) is not a bag folder, and the reader then says what is wrong with it.
+    """
     if path.suffix.lower() in BAG_SUFFIXES:
         return True
-    return path.is_dir() and (path / "metadata.yaml").is_file()
+    # os.path (not Path.is_dir, which re-raises PermissionError): False on any OS error
+    return os.path.isdir(path) and os.path.isfile(path / "metadata.yaml")
 
 
 def _load_bag(path: Path, topic: str | None) -> OccupancyMap:
@@ -60,7 +65,7 @@ def _load_bag(path: Path, topic: str | None) -> OccupancyMap:
         module = importlib.import_module("brokenness.io.rosbag")
         loader = module.load_bag_map
     except (ImportError, AttributeError) as exc:
-        raise MapError(f"{path}: rosbag support is unavailable ({exc})") from None
+        raise MapError(f"{path_text(path)}: rosbag support is unavailable ({exc})") from None
     return loader(path, topic=topic or "/map")  # type: ignore[no-any-return]
 
 
@@ -72,21 +77,22 @@ def _geometry(
         try:
             res = float(resolution)
         except (TypeError, ValueError, OverflowError):
-            raise ParameterError(f"resolution must be a number, got {resolution!r}") from None
+            raise ParameterError(f"resolution must be a number, got {shown(resolution)}") from None
         if not resolution_in_range(res):
             raise ParameterError(
                 f"resolution must be a number of metres in [{MIN_RESOLUTION:g}, "
-                f"{MAX_RESOLUTION:g}], got {res!r}"
+                f"{MAX_RESOLUTION:g}], got {shown(res)}"
             )
         resolution = res
     if origin is not None:
         try:
             x, y, yaw = (float(v) for v in origin)
         except (TypeError, ValueError, OverflowError):
-            raise ParameterError(f"origin must be (x, y, yaw), got {origin!r}") from None
+            raise ParameterError(f"origin must be (x, y, yaw), got {shown(origin)}") from None
         if not all(abs(v) <= MAX_COORDINATE for v in (x, y, yaw)):
             raise ParameterError(
-                f"origin must be three finite numbers within {MAX_COORDINATE:g}, got {origin!r}"
+                f"origin must be three finite numbers within {MAX_COORDINATE:g}, "
+                f"got {shown(origin)}"
             )
         origin = (x, y, yaw)
     return resolution, origin
@@ -170,14 +176,15 @@ def load_map(
     ((384, 384), 0.05, (-10.0, -10.0, 0.0))
     """
     if mode is not None and (not isinstance(mode, str) or mode.lower() not in MODES):
-        raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+        raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {shown(mode)}")
     mode = mode.lower() if mode is not None else None
     resolution, origin = _geometry(resolution, origin)
     p = as_path(path, "map path")
-    name = str(p)
+    source = str(p)  # the map's source: the path as given
+    name = path_text(p)  # the path as messages show it (one line, bounded)
     if row_order is not None:
         if row_order not in ROW_ORDERS:
-            raise ParameterError(f"row_order must be 'ros' or 'image', got {row_order!r}")
+            raise ParameterError(f"row_order must be 'ros' or 'image', got {shown(row_order)}")
         if p.suffix.lower() != ".npy":
             raise ParameterError(f"{name}: row_order applies to .npy arrays only")
 
@@ -199,10 +206,13 @@ def load_map(
         if is_rosbag2_metadata(doc):
             return load_map(p.parent, resolution=resolution, origin=origin, topic=topic)
         meta = parse_map_yaml(doc, p)
+        image = path_text(meta.image)
         if meta.image.suffix.lower() in YAML_SUFFIXES | {".npy"} | BAG_SUFFIXES:
-            raise MapFormatError(f"{name}: 'image' must be a raster image, got {meta.image.name}")
+            raise MapFormatError(
+                f"{name}: 'image' must be a raster image, got {path_text(meta.image.name)}"
+            )
         if not os.path.lexists(meta.image):
-            raise MapError(f"{name}: image file {meta.image} does not exist")
+            raise MapError(f"{name}: image file {image} does not exist")
         try:
             check_regular(meta.image, "map image")
         except MapError as exc:
@@ -220,7 +230,7 @@ def load_map(
             states,
             resolution if resolution is not None else meta.resolution,
             origin if origin is not None else meta.origin,
-            source=name,
+            source=source,
         )
     if suffix == ".npy":
         return decode_npy(p, resolution=resolution, origin=origin, row_order=row_order)
@@ -233,8 +243,8 @@ def load_map(
             name=name,
         )
         states.setflags(write=False)  # a fresh grid nobody else holds: taken without a copy
-        return OccupancyMap(states, resolution, origin, source=name)
+        return OccupancyMap(states, resolution, origin, source=source)
     raise MapFormatError(
-        f"{name}: unsupported map file extension {p.suffix or '(none)'!r} "
+        f"{name}: unsupported map file extension {shown(p.suffix or '(none)')} "
         "(use .yaml, .pgm, .png or another image, .npy, or a rosbag)"
     )

@@ -39,7 +39,7 @@ from PIL import Image, UnidentifiedImageError
 from ..errors import MapFormatError, MapSizeError
 from ..grid import FREE, OCCUPIED, UNKNOWN
 from ..limits import check_cells
-from ._files import MapWarning, one_line, read_file_bytes
+from ._files import REASON_CHARS, MapWarning, one_line, path_text, read_file_bytes, shown
 from .pnm import PGM_MAGICS, decode_pgm
 
 __all__ = [
@@ -60,6 +60,9 @@ MODES: tuple[str, ...] = ("trinary", "scale", "raw")
 
 #: Grey value ``map_saver`` writes for unknown cells.
 _SAVER_UNKNOWN_GREY = 205
+#: Formats whose images Pillow opens in the 32-bit integer mode ``I`` only to hold 16-bit
+#: samples: a 16-bit grey PNG (Pillow before 10.3 opens it as ``I``, later as ``I;16``).
+_SIXTEEN_BIT_I_FORMATS = frozenset({"PNG"})
 
 
 @dataclass(frozen=True)
@@ -111,11 +114,21 @@ def _from_pillow(img: Image.Image, name: str) -> Pixels:
         return Pixels(arr[..., :3].sum(axis=2, dtype=np.uint16), 3, 255, arr[..., 3] == 255)
     if mode.startswith("I;16"):
         return Pixels(arr.astype(np.uint16), 1, 65535)
-    if mode == "I":
+    if mode == "I" and img.format in _SIXTEEN_BIT_I_FORMATS:
         if arr.size and (arr.min() < 0 or arr.max() > 65535):
-            raise MapFormatError(f"{name}: 32-bit integer image with values outside 0..65535")
+            raise MapFormatError(f"{name}: 16-bit image with values outside 0..65535")
         return Pixels(arr.astype(np.uint16), 1, 65535)
-    raise MapFormatError(f"{name}: unsupported image mode {mode!r} (use a grey or colour image)")
+    if mode == "I":
+        # 32-bit (or signed) integer samples have no agreed white: 255, 65535, 2**31 - 1 and
+        # 2**32 - 1 all occur, and a guess would silently turn walls into free space or back
+        kind = f"{img.format} image" if img.format else "image"
+        raise MapFormatError(
+            f"{name}: {kind} of 32-bit or signed integer samples (mode 'I'): its white level "
+            "is ambiguous; save the map as an 8-bit or 16-bit grey image"
+        )
+    raise MapFormatError(
+        f"{name}: unsupported image mode {shown(mode)} (use a grey or colour image)"
+    )
 
 
 def _read_pillow(data: bytes, name: str) -> Pixels:
@@ -135,7 +148,8 @@ def _read_pillow(data: bytes, name: str) -> Pixels:
                 img.load()
                 return _from_pillow(img, name)
     except Image.DecompressionBombError as exc:
-        raise MapSizeError(f"{name}: image refused as too large ({one_line(exc)})") from None
+        reason = one_line(exc, REASON_CHARS)
+        raise MapSizeError(f"{name}: image refused as too large ({reason})") from None
     except UnidentifiedImageError:
         raise MapFormatError(f"{name}: not an image file Pillow can read") from None
     except MemoryError:
@@ -143,7 +157,7 @@ def _read_pillow(data: bytes, name: str) -> Pixels:
     except (MapFormatError, MapSizeError):
         raise
     except Exception as exc:  # Pillow's plugins raise OSError, SyntaxError, struct.error...
-        reason = one_line(exc) or type(exc).__name__
+        reason = one_line(exc, REASON_CHARS) or type(exc).__name__
         raise MapFormatError(f"{name}: corrupt or truncated image ({reason})") from None
 
 
@@ -154,20 +168,23 @@ def read_pixels(path: Path) -> Pixels:
     everything else (PNG, BMP, TIFF, PPM...) by Pillow, whose modes are mapped as follows:
     ``1``/``L`` grey, ``LA`` grey + alpha, ``RGB`` (and ``CMYK``, ``YCbCr``... converted to
     RGB), ``RGBA``, palette images through RGB or RGBA (palette transparency becomes alpha),
-    ``I;16*`` and ``I`` as 16-bit grey. Float images are refused.
+    ``I;16*`` as 16-bit grey, and ``I`` as 16-bit grey for a 16-bit PNG (which Pillow before
+    10.3 opens as ``I``). Float images and other 32-bit integer images (a TIFF of
+    ``int32``...) are refused: their white level is ambiguous, and guessing it would
+    silently misread the map.
 
     Raises
     ------
     MapError
         Missing, not a regular file (directory, FIFO, device...) or unreadable file.
     MapFormatError
-        Empty, corrupt or truncated file; unsupported image mode.
+        Empty, corrupt or truncated file; unsupported image mode (float, 32-bit integer).
     MapSizeError
         Image larger than :func:`~brokenness.limits.max_cells` (checked from the header,
         before decoding), a file larger than :func:`~brokenness.limits.max_file_bytes`, or
         an image refused by Pillow's decompression-bomb guard.
     """
-    name = str(path)
+    name = path_text(path)
     data = read_file_bytes(path, what="map image")  # a regular file within the size limit
     if data[:2] in PGM_MAGICS:
         pixels, maxval = decode_pgm(data, name)

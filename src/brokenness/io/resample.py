@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 
 from ..errors import MapError, ParameterError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
-from ..limits import check_cells
+from ..limits import MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
 
 __all__ = ["cell_scale_offset", "common_resolution", "resample_to_resolution", "resampled_size"]
 
@@ -63,9 +63,13 @@ def resampled_size(n: int, scale: float) -> int:
 
 
 def _overlap_matrix(n_new: int, n_old: int, scale: float) -> sp.csr_matrix:
-    """Sparse ``(n_new, n_old)`` matrix of overlap lengths (in old cells), for ``scale < 1``."""
+    """Sparse ``(n_new, n_old)`` matrix of overlap lengths (in old cells), for ``scale < 1``.
+
+    A new cell overlaps ``ceil(1 / scale) + 1`` old cells at most, and never more than the
+    ``n_old`` there are: the entries tried are bounded by the old cells, not by the ratio.
+    """
     width = 1.0 / scale
-    k = math.ceil(width) + 1
+    k = min(math.ceil(width) + 1, n_old + 1)
     i = np.repeat(np.arange(n_new), k)
     lo = i * width
     j = np.floor(lo).astype(np.int64) + np.tile(np.arange(k), n_new)
@@ -117,12 +121,14 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
     Raises
     ------
     MapError
-        If ``m`` has no resolution.
+        If ``m`` is not an :class:`OccupancyMap` or has no resolution.
     MapSizeError
         If the resampled map would have more than :func:`~brokenness.limits.max_cells`
         cells (checked before anything is allocated).
     ParameterError
-        If ``resolution`` is not a positive finite number.
+        If ``resolution`` is not a number of metres in
+        [:data:`~brokenness.limits.MIN_RESOLUTION`, :data:`~brokenness.limits.MAX_RESOLUTION`]
+        (the range of a map's own).
 
     Examples
     --------
@@ -131,12 +137,17 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
     >>> resample_to_resolution(m, 0.1).shape
     (2, 2)
     """
+    if not isinstance(m, OccupancyMap):
+        raise MapError(f"only an OccupancyMap can be resampled, got {type(m).__name__}")
     try:
         new_res = float(resolution)
     except (TypeError, ValueError):
         raise ParameterError(f"resolution must be a number, got {resolution!r}") from None
-    if not math.isfinite(new_res) or new_res <= 0:
-        raise ParameterError(f"resolution must be a positive number of metres, got {resolution!r}")
+    if not resolution_in_range(new_res):
+        raise ParameterError(
+            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
+            f"{MAX_RESOLUTION:g}], got {resolution!r}"
+        )
     if m.resolution is None:
         raise MapError(f"{m.source or 'map'}: has no resolution, so it cannot be resampled")
     if new_res == m.resolution:

@@ -32,7 +32,7 @@ import yaml
 
 from ..errors import MapFormatError
 from ..limits import MAX_COORDINATE, MAX_RESOLUTION, MAX_TEXT_BYTES, MIN_RESOLUTION
-from ._files import read_file_bytes
+from ._files import path_text, read_file_bytes, shown
 from ._yaml import parse_yaml
 from .pixels import DEFAULT_FREE_THRESH, DEFAULT_OCCUPIED_THRESH, MODES
 
@@ -69,14 +69,13 @@ class MapYaml:
 
 def _number(value: Any, key: str, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise MapFormatError(f"{name}: '{key}' must be a number, got {value!r}")
+        raise MapFormatError(f"{name}: '{key}' must be a number, got {shown(value)}")
     try:
         number = float(value)
     except (ValueError, OverflowError):
-        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
-        raise MapFormatError(f"{name}: '{key}' must be a number, got {shown}") from None
+        raise MapFormatError(f"{name}: '{key}' must be a number, got {shown(value)}") from None
     if not math.isfinite(number):
-        raise MapFormatError(f"{name}: '{key}' must be finite, got {value!r}")
+        raise MapFormatError(f"{name}: '{key}' must be finite, got {shown(value)}")
     return number
 
 
@@ -88,11 +87,12 @@ def is_rosbag2_metadata(doc: Any) -> bool:
 def load_yaml_document(path: Path) -> Any:
     """Parse a YAML file of at most :data:`~brokenness.limits.MAX_TEXT_BYTES` bytes.
 
-    Uses :func:`brokenness.io._yaml.parse_yaml` (safe loader, duplicate keys refused); every
-    failure is a one-line :class:`MapFormatError` (or :class:`MapError` for the file itself).
+    Uses :func:`brokenness.io._yaml.parse_yaml` (safe loader, duplicate keys and aliases
+    refused); every failure is a one-line :class:`MapFormatError` (or :class:`MapError` for
+    the file itself, :class:`~brokenness.errors.MapSizeError` for a file over the limit).
     """
     data = read_file_bytes(path, MAX_TEXT_BYTES, "map YAML")
-    return parse_yaml(data, str(path))
+    return parse_yaml(data, path_text(path))
 
 
 def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
@@ -101,7 +101,7 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     Parameters
     ----------
     doc : object
-        What :func:`yaml.safe_load` returned.
+        What :func:`load_yaml_document` returned.
     path : Path
         The YAML file (to resolve ``image`` and for messages).
 
@@ -115,9 +115,10 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
         Not a mapping, a duplicate key, ``image`` or ``resolution`` missing, a value of the
         wrong type or out of range (resolution NaN or outside [1e-6, 1e4] m, origin not 3
         finite numbers within 1e9, thresholds outside [0, 1] or ``free_thresh >=
-        occupied_thresh``, unknown ``mode``, ``negate`` not 0/1).
+        occupied_thresh``, unknown ``mode``, ``negate`` not 0/1). A value the message echoes
+        is shortened (:func:`~brokenness.io._files.shown`).
     """
-    name = str(path)
+    name = path_text(path)
     if not isinstance(doc, dict):
         kind = "empty" if doc is None else type(doc).__name__
         raise MapFormatError(f"{name}: not a ROS map YAML (expected a mapping, got {kind})")
@@ -126,10 +127,10 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
             raise MapFormatError(f"{name}: not a ROS map YAML (no '{key}' field)")
     image = doc["image"]
     if not isinstance(image, str) or not image.strip():
-        raise MapFormatError(f"{name}: 'image' must be a file name, got {image!r}")
+        raise MapFormatError(f"{name}: 'image' must be a file name, got {shown(image)}")
     resolution = _number(doc["resolution"], "resolution", name)
     if resolution <= 0:
-        raise MapFormatError(f"{name}: 'resolution' must be > 0, got {doc['resolution']!r}")
+        raise MapFormatError(f"{name}: 'resolution' must be > 0, got {shown(doc['resolution'])}")
     if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
         raise MapFormatError(
             f"{name}: 'resolution' {resolution!r} is outside the supported range "
@@ -140,11 +141,11 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     if doc.get("origin") is not None:
         raw = doc["origin"]
         if not isinstance(raw, list | tuple) or len(raw) != 3:
-            raise MapFormatError(f"{name}: 'origin' must be [x, y, yaw], got {raw!r}")
+            raise MapFormatError(f"{name}: 'origin' must be [x, y, yaw], got {shown(raw)}")
         x, y, yaw = (_number(v, "origin", name) for v in raw)
         if max(abs(x), abs(y), abs(yaw)) > MAX_COORDINATE:
             raise MapFormatError(
-                f"{name}: 'origin' {raw!r} is out of range (|value| <= {MAX_COORDINATE:g})"
+                f"{name}: 'origin' {shown(raw)} is out of range (|value| <= {MAX_COORDINATE:g})"
             )
         origin = (x, y, yaw)
 
@@ -154,7 +155,7 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     elif isinstance(negate_raw, int) and negate_raw in (0, 1):
         negate = bool(negate_raw)
     else:
-        raise MapFormatError(f"{name}: 'negate' must be 0 or 1, got {negate_raw!r}")
+        raise MapFormatError(f"{name}: 'negate' must be 0 or 1, got {shown(negate_raw)}")
 
     occupied = DEFAULT_OCCUPIED_THRESH
     free = DEFAULT_FREE_THRESH
@@ -174,7 +175,7 @@ def parse_map_yaml(doc: Any, path: Path) -> MapYaml:
     if mode is None:
         mode = "trinary"
     if not isinstance(mode, str) or mode.strip().lower() not in MODES:
-        raise MapFormatError(f"{name}: unknown mode {mode!r} (expected trinary, scale or raw)")
+        raise MapFormatError(f"{name}: unknown mode {shown(mode)} (expected trinary, scale or raw)")
     return MapYaml(
         image=path.parent / image.strip(),
         resolution=resolution,

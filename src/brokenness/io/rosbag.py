@@ -21,7 +21,16 @@ Conversion (``nav_msgs/MapMetaData`` semantics):
   :meth:`brokenness.OccupancyMap.from_array` (>= 65 occupied, <= 19 free, ``map_saver``'s
   thresholds).
 * ``info.resolution`` is the resolution; ``info.origin`` gives ``(x, y, yaw)`` of the
-  lower-left corner, yaw from the quaternion (the same meaning as a ``map_server`` YAML).
+  lower-left corner, yaw from the quaternion (the same meaning as a ``map_server`` YAML),
+  with the same range as a YAML origin (finite, ``|x|, |y| <=``
+  :data:`~brokenness.limits.MAX_COORDINATE`).
+
+Before the bag reader opens anything, every file it could open must be a regular file (no
+FIFO, device or socket: opening one would block or never end): a ``.bag`` or storage file
+itself, and for a rosbag2 folder *every* file in the folder, whatever ``metadata.yaml`` lists.
+A rosbag2 ``metadata.yaml`` must be at most :data:`~brokenness.limits.MAX_TEXT_BYTES` and is
+parsed first by the package's strict YAML reader (:func:`brokenness.io._yaml.parse_yaml`: no
+aliases, no duplicate keys), so the bag reader never parses a huge or hostile one.
 
 References
 ----------
@@ -34,6 +43,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -45,8 +55,18 @@ import numpy as np
 from .._optional import require
 from ..errors import BrokennessError, MapError, MapFormatError, ParameterError
 from ..grid import OccupancyMap
-from ..limits import MAX_TEXT_BYTES, check_cells, resolution_in_range
-from ._files import as_path, check_regular, one_line, read_file_bytes
+from ..limits import MAX_COORDINATE, MAX_TEXT_BYTES, check_cells, resolution_in_range
+from ._files import (
+    REASON_CHARS,
+    as_path,
+    check_regular,
+    one_line,
+    path_text,
+    read_file_bytes,
+    shown,
+    stat_path,
+)
+from ._yaml import parse_yaml
 
 __all__ = [
     "MAX_PERIOD",
@@ -91,20 +111,25 @@ def _typestore() -> Any:
 
 
 def _grid_to_map(msg: Any, source: str) -> OccupancyMap:
-    """An :class:`OccupancyMap` from a deserialised ``nav_msgs/OccupancyGrid``."""
+    """An :class:`OccupancyMap` from a deserialised ``nav_msgs/OccupancyGrid``.
+
+    ``source`` becomes the map's source; messages show it through
+    :func:`~brokenness.io._files.path_text`.
+    """
+    name = path_text(source)
     info = msg.info
     width, height = int(info.width), int(info.height)
     if width <= 0 or height <= 0:
-        raise MapFormatError(f"{source}: the OccupancyGrid is empty ({width}x{height} cells)")
-    check_cells(height, width, f"{source}: OccupancyGrid")
+        raise MapFormatError(f"{name}: the OccupancyGrid is empty ({width}x{height} cells)")
+    check_cells(height, width, f"{name}: OccupancyGrid")
     if not resolution_in_range(float(info.resolution)):
         raise MapFormatError(
-            f"{source}: the OccupancyGrid's resolution {float(info.resolution)!r} is out of range"
+            f"{name}: the OccupancyGrid's resolution {float(info.resolution)!r} is out of range"
         )
     data = np.asarray(msg.data)
     if data.size != width * height:
         raise MapFormatError(
-            f"{source}: the OccupancyGrid has {data.size} values for {width}x{height} cells"
+            f"{name}: the OccupancyGrid has {data.size} values for {width}x{height} cells"
         )
     grid = data.astype(np.int8, copy=False).reshape(height, width)[::-1]  # row 0 = top
     q = info.origin.orientation
@@ -113,32 +138,52 @@ def _grid_to_map(msg: Any, source: str) -> OccupancyMap:
         float(info.origin.position.y),
         quaternion_yaw(float(q.x), float(q.y), float(q.z), float(q.w)),
     )
+    if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in origin):
+        raise MapFormatError(
+            f"{name}: the OccupancyGrid's origin {shown(origin)} is out of range (finite, "
+            f"|value| <= {MAX_COORDINATE:g}, as for a map YAML)"
+        )
     try:
-        return OccupancyMap.from_array(
-            grid, resolution=float(info.resolution), origin=origin, source=source
+        return OccupancyMap.from_array(  # percent values, whatever they hold
+            grid,
+            resolution=float(info.resolution),
+            origin=origin,
+            source=source,
+            occupancy_grid=True,
         )
     except MapError as exc:
-        raise MapFormatError(f"{source}: bad OccupancyGrid: {exc}") from None
+        raise MapFormatError(f"{name}: bad OccupancyGrid: {exc}") from None
 
 
 def _pick(connections: Iterable[Any], topic: str, source: str) -> list[Any]:
-    """The connections of ``topic``; one-line errors when it is missing or of another type."""
+    """The connections of ``topic``; one-line errors when it is missing or of another type.
+
+    Topic and type names come from the bag: the message shows them shortened.
+    """
+    name = path_text(source)
     conns = list(connections)
     on_topic = [c for c in conns if c.topic == topic]
     if not on_topic:
-        grids = sorted({c.topic for c in conns if c.msgtype == OCCUPANCY_GRID})
+        grids = sorted({str(c.topic) for c in conns if c.msgtype == OCCUPANCY_GRID})
         hint = (
-            f"; OccupancyGrid topics: {', '.join(grids)}"
+            f"; OccupancyGrid topics: {_names(grids)}"
             if grids
             else "; the bag has no OccupancyGrid topic"
         )
-        raise MapError(f"{source}: no topic {topic!r} in the bag{hint}")
-    wrong = sorted({c.msgtype for c in on_topic if c.msgtype != OCCUPANCY_GRID})
+        raise MapError(f"{name}: no topic {shown(topic)} in the bag{hint}")
+    wrong = sorted({str(c.msgtype) for c in on_topic if c.msgtype != OCCUPANCY_GRID})
     if wrong:
         raise MapFormatError(
-            f"{source}: topic {topic!r} carries {', '.join(wrong)}, not nav_msgs/OccupancyGrid"
+            f"{name}: topic {shown(topic)} carries {_names(wrong)}, not nav_msgs/OccupancyGrid"
         )
     return on_topic
+
+
+def _names(names: list[str], most: int = 8) -> str:
+    """``a, b, c`` of names read from a bag, each shortened, at most ``most`` of them."""
+    parts = [n if n.isprintable() and len(n) <= 80 else shown(n) for n in names[:most]]
+    more = len(names) - most
+    return ", ".join(parts) + (f" and {more} more" if more > 0 else "")
 
 
 def _last_message(reader: Any, connections: list[Any]) -> bytes | None:
@@ -157,7 +202,7 @@ def _read_any(paths: list[Path], topic: str, source: str) -> OccupancyMap:
         conns = _pick(reader.connections, topic, source)
         raw = _last_message(reader, conns)
         if raw is None:
-            raise MapError(f"{source}: no message on topic {topic!r}")
+            raise MapError(f"{path_text(source)}: no message on topic {shown(topic)}")
         msg = reader.deserialize(raw, OCCUPANCY_GRID)
     return _grid_to_map(msg, source)
 
@@ -177,64 +222,98 @@ def _read_storage_file(path: Path, topic: str, source: str) -> OccupancyMap:
     finally:
         storage.close()
     if raw is None:
-        raise MapError(f"{source}: no message on topic {topic!r}")
+        raise MapError(f"{path_text(source)}: no message on topic {shown(topic)}")
     msg = _typestore().deserialize_cdr(raw, OCCUPANCY_GRID)
     return _grid_to_map(msg, source)
 
 
-def _inside_bag_folder(path: Path) -> bool:
-    meta = path.parent / "metadata.yaml"
-    if not meta.is_file():
-        return False
-    try:
-        return path.name in meta.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return False
+def _metadata(meta: Path) -> Any:
+    """A rosbag2 ``metadata.yaml``, parsed: a regular file of at most
+    :data:`~brokenness.limits.MAX_TEXT_BYTES` bytes, by the package's strict YAML reader.
 
-
-def _listed_files(meta: Path) -> list[str]:
-    """Names of the storage files a rosbag2 ``metadata.yaml`` lists (none if unreadable).
-
-    The bag reader opens these (whatever their suffix); a damaged metadata file is reported
-    by the reader itself.
+    Raises
+    ------
+    MapError
+        Not a regular file, unreadable; :class:`~brokenness.errors.MapSizeError` if larger
+        than the limit; :class:`MapFormatError` if not valid YAML (aliases, duplicate keys...).
     """
-    from ._yaml import parse_yaml
+    data = read_file_bytes(meta, MAX_TEXT_BYTES, "rosbag2 metadata file")
+    return parse_yaml(data, path_text(meta))
 
+
+def _listed_names(doc: Any) -> list[str]:
+    """File names in a parsed ``metadata.yaml``'s ``relative_file_paths`` (none if it has none).
+
+    The bag reader opens ``folder / PurePath(entry).name`` for each entry.
+    """
     try:
-        doc = parse_yaml(read_file_bytes(meta, MAX_TEXT_BYTES, "rosbag2 metadata file"), "")
         names = doc["rosbag2_bagfile_information"]["relative_file_paths"]
-        return [PurePath(str(n)).name for n in names]
-    except (BrokennessError, LookupError, TypeError):
+    except (LookupError, TypeError):
         return []
+    if not isinstance(names, list):
+        return []
+    return [PurePath(n).name for n in names if isinstance(n, str)]
 
 
-def _check_bag_files(p: Path) -> None:
-    """Every file the bag readers would open must be a regular file (no FIFO, no device).
+def _check_bag_folder(folder: Path) -> None:
+    """Every file of a rosbag2 folder must be a regular file, and its metadata.yaml valid.
 
-    A folder is a rosbag2 bag: its ``metadata.yaml``, the storage files it lists and every
-    ``.db3`` / ``.mcap`` file in it are checked.
+    The bag reader opens every file ``metadata.yaml`` lists, whatever its name, so every file
+    in the folder is checked (sub-folders, which it never reads, are skipped) before anything
+    is opened. Then ``metadata.yaml`` is read and parsed, bounded (:func:`_metadata`). A
+    folder without ``metadata.yaml`` is never read (the readers say it needs one).
     """
-    if not p.is_dir():
-        check_regular(p, "rosbag")
-        if p.suffix.lower() in _STORAGE_SUFFIXES and os.path.lexists(p.parent / "metadata.yaml"):
-            check_regular(p.parent / "metadata.yaml", "rosbag2 metadata file")
+    meta = folder / "metadata.yaml"
+    if not os.path.lexists(meta):
         return
-    meta = p / "metadata.yaml"
-    listed: list[str] = []
-    if os.path.lexists(meta):
-        check_regular(meta, "rosbag2 metadata file")
-        listed = _listed_files(meta)
-    for item in sorted(p.iterdir()):
-        if item.suffix.lower() in _STORAGE_SUFFIXES or item.name in listed:
-            check_regular(item, "rosbag2 storage file")
+    try:
+        entries = sorted(os.listdir(folder))
+    except OSError as exc:
+        reason = one_line(exc.strerror or exc, REASON_CHARS)
+        raise MapError(f"{path_text(folder)}: cannot list the bag folder ({reason})") from None
+    for entry in entries:
+        item = folder / entry
+        if not os.path.isdir(item):
+            check_regular(item, "rosbag2 file")
+    _metadata(meta)
+
+
+def _check_bag_files(p: Path) -> Path | None:
+    """Check every file the bag reader would open; the rosbag2 folder it would read, if any.
+
+    Returns
+    -------
+    Path or None
+        ``p`` for a rosbag2 folder; the folder of a storage file that its folder's
+        ``metadata.yaml`` lists (it is read through the folder); None for a ``.bag`` file or
+        a lone storage file.
+    """
+    if stat.S_ISDIR(stat_path(p).st_mode):
+        _check_bag_folder(p)
+        return p
+    check_regular(p, "rosbag")
+    meta = p.parent / "metadata.yaml"
+    if p.suffix.lower() not in _STORAGE_SUFFIXES or not os.path.lexists(meta):
+        return None
+    if p.name not in _listed_names(_metadata(meta)):
+        return None
+    _check_bag_folder(p.parent)
+    return p.parent
+
+
+def _checked_bag(path: str | os.PathLike[str]) -> tuple[Path, Path | None]:
+    """:func:`check_bag`, with the rosbag2 folder to read through (see _check_bag_files)."""
+    p = as_path(path, "bag")
+    return p, _check_bag_files(p)
 
 
 def check_bag(path: str | os.PathLike[str]) -> Path:
     """Refuse a bag that is missing or whose files are not all regular files.
 
-    Nothing is opened but a rosbag2 ``metadata.yaml`` (itself checked first), so a FIFO or a
-    device (``/dev/zero`` through a symbolic link...) fails at once instead of blocking or
-    being read forever.
+    Nothing is opened but a rosbag2 ``metadata.yaml`` (itself checked first, read within
+    :data:`~brokenness.limits.MAX_TEXT_BYTES` bytes and parsed without aliases), so a FIFO or
+    a device (``/dev/zero`` through a symbolic link...) fails at once instead of blocking or
+    being read forever. In a rosbag2 folder every file is checked, listed or not.
 
     Parameters
     ----------
@@ -249,14 +328,14 @@ def check_bag(path: str | os.PathLike[str]) -> Path:
     ------
     MapError
         Missing path, or a FIFO, device, socket or directory where a bag file should be.
+    MapSizeError
+        A ``metadata.yaml`` larger than :data:`~brokenness.limits.MAX_TEXT_BYTES`.
+    MapFormatError
+        A ``metadata.yaml`` that is not valid YAML (aliases and duplicate keys refused).
     ParameterError
         If ``path`` is not a path at all (``None``...).
     """
-    p = as_path(path, "bag")
-    if not os.path.lexists(p):
-        raise MapError(f"{path}: no such file or folder")
-    _check_bag_files(p)
-    return p
+    return _checked_bag(path)[0]
 
 
 def thinning(
@@ -273,7 +352,7 @@ def thinning(
         Of class ``error``, for a bad ``every`` or ``period``.
     """
     if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise error(f"every must be a positive integer, got {every!r}")
+        raise error(f"every must be a positive integer, got {shown(every)}")
     if period is None:
         return None
     try:
@@ -283,7 +362,7 @@ def thinning(
     if not (math.isfinite(seconds) and 0 <= seconds <= MAX_PERIOD):
         raise error(
             f"period must be a number of seconds in [0, {MAX_PERIOD:.4g}] (bag time stamps "
-            f"are 64-bit nanoseconds), got {period!r}"
+            f"are 64-bit nanoseconds), got {shown(period)}"
         )
     return min(round(seconds * 1e9), _MAX_NS)
 
@@ -321,31 +400,30 @@ def load_bag_map(path: str | os.PathLike[str], topic: str = "/map") -> Occupancy
     >>> m.shape, m.resolution, m.origin  # doctest: +SKIP
     ((384, 384), 0.05, (-10.0, -10.0, 0.0))
     """
-    p = check_bag(path)
+    p, folder = _checked_bag(path)
     source = str(path)
+    name = path_text(source)
     if not isinstance(topic, str) or not topic:
-        raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
+        raise MapError(f"{name}: the topic must be a non-empty string, got {shown(topic)}")
     suffix = p.suffix.lower()
     require_rosbags("reading ROS bags")
     try:
-        if p.is_dir():
-            if not (p / "metadata.yaml").is_file():
-                raise MapFormatError(f"{source}: a rosbag2 folder needs a metadata.yaml")
-            return _read_any([p], topic, source)
+        if folder is not None:
+            if not os.path.isfile(folder / "metadata.yaml"):
+                raise MapFormatError(f"{name}: a rosbag2 folder needs a metadata.yaml")
+            return _read_any([folder], topic, source)
         if suffix == ".bag":
             return _read_any([p], topic, source)
         if suffix in _STORAGE_SUFFIXES:
-            if _inside_bag_folder(p):
-                return _read_any([p.parent], topic, source)
             return _read_storage_file(p, topic, source)
-        raise MapFormatError(f"{source}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)")
+        raise MapFormatError(f"{name}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)")
     except MapError:
         raise
     except MemoryError:
-        raise MapFormatError(f"{source}: the bag is too large to read") from None
+        raise MapFormatError(f"{name}: the bag is too large to read") from None
     except Exception as exc:  # rosbags raises many kinds on damaged files
-        text = one_line(exc) or type(exc).__name__
-        raise MapFormatError(f"{source}: cannot read the bag ({text})") from None
+        text = one_line(exc, REASON_CHARS) or type(exc).__name__
+        raise MapFormatError(f"{name}: cannot read the bag ({text})") from None
 
 
 # -- every message ----------------------------------------------------------------------------
@@ -374,18 +452,18 @@ class BagMap:
 
 @contextmanager
 def _open_raw(
-    p: Path, topic: str, source: str
+    p: Path, folder: Path | None, topic: str, source: str
 ) -> Iterator[tuple[Iterator[tuple[int, bytes]], Callable[[bytes], Any], int | None]]:
-    """(stamp, raw) of every message on ``topic``, a deserialiser, and the message count."""
-    _check_bag_files(p)  # no FIFO or device: opening one would block or never end
-    if p.is_dir():
-        if not (p / "metadata.yaml").is_file():
-            raise MapFormatError(f"{source}: a rosbag2 folder needs a metadata.yaml")
-        paths = [p]
+    """(stamp, raw) of every message on ``topic``, a deserialiser, and the message count.
+
+    ``p`` and ``folder`` are what :func:`_checked_bag` returned: every file is checked.
+    """
+    if folder is not None:
+        if not os.path.isfile(folder / "metadata.yaml"):
+            raise MapFormatError(f"{path_text(source)}: a rosbag2 folder needs a metadata.yaml")
+        paths = [folder]
     elif p.suffix.lower() == ".bag":
         paths = [p]
-    elif p.suffix.lower() in _STORAGE_SUFFIXES and _inside_bag_folder(p):
-        paths = [p.parent]
     elif p.suffix.lower() in _STORAGE_SUFFIXES:
         from rosbags.rosbag2.storage_mcap import McapReader
         from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
@@ -403,7 +481,9 @@ def _open_raw(
             storage.close()
         return
     else:
-        raise MapFormatError(f"{source}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)")
+        raise MapFormatError(
+            f"{path_text(source)}: not a rosbag (.bag, .db3, .mcap or a rosbag2 folder)"
+        )
     from rosbags.highlevel import AnyReader
 
     with AnyReader(paths, default_typestore=_typestore()) as reader:
@@ -475,14 +555,15 @@ def iter_bag_maps(
     MissingDependencyError
         If the optional package ``rosbags`` is not installed.
     """
-    p = check_bag(path)
+    p, folder = _checked_bag(path)
     source = str(path)
+    name = path_text(source)
     if not isinstance(topic, str) or not topic:
-        raise MapError(f"{source}: the topic must be a non-empty string, got {topic!r}")
+        raise MapError(f"{name}: the topic must be a non-empty string, got {shown(topic)}")
     period_ns = thinning(every, period, MapError)
     require_rosbags("reading ROS bags")
     try:
-        with _open_raw(p, topic, source) as (raw, deserialize, _total):
+        with _open_raw(p, folder, topic, source) as (raw, deserialize, _total):
             for i, stamp, data in _thinned(raw, every, period_ns):
                 msg = deserialize(data)
                 del data
@@ -494,18 +575,19 @@ def iter_bag_maps(
     except MapError:
         raise
     except MemoryError:
-        raise MapFormatError(f"{source}: a message is too large to read") from None
+        raise MapFormatError(f"{name}: a message is too large to read") from None
     except GeneratorExit:
         raise
     except Exception as exc:  # rosbags raises many kinds on damaged files
-        text = one_line(exc) or type(exc).__name__
-        raise MapFormatError(f"{source}: cannot read the bag ({text})") from None
+        text = one_line(exc, REASON_CHARS) or type(exc).__name__
+        raise MapFormatError(f"{name}: cannot read the bag ({text})") from None
 
 
 def count_bag_maps(path: str | os.PathLike[str], topic: str = "/map") -> int | None:
     """Messages on ``topic`` as the bag's index says (``None`` when it does not say)."""
     try:
-        with _open_raw(check_bag(path), topic, str(path)) as (_raw, _deserialize, total):
+        p, folder = _checked_bag(path)
+        with _open_raw(p, folder, topic, str(path)) as (_raw, _deserialize, total):
             return total
     except Exception:  # the reading itself reports the errors
         return None

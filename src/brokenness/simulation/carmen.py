@@ -19,6 +19,11 @@ Rules (documented, tested):
 
 - gzip is detected by the file's magic bytes (``1f 8b``), not by its name; a gzip file cut
   short is read up to where it ends (the cut line is then skipped as truncated).
+- A log (the file, and its text once gunzipped) may have at most :data:`MAX_LOG_BYTES` bytes
+  (256 MiB); the text is inflated in bounded steps and refused with a one-line
+  :class:`~brokenness.errors.MapSizeError` as soon as it passes the limit, so a small "gzip
+  bomb" cannot fill the memory. Only the laser lines are split into fields (reading takes up
+  to about 20 bytes of memory per byte of laser text, so a log stays within about 5 GB).
 - If a log holds valid ``ROBOTLASER1`` lines, those are used and ``FLASER`` lines are ignored
   (logs that have both carry the same scans twice); otherwise the ``FLASER`` lines are used.
 - A laser line that is truncated or malformed (too few or too many fields, a field that is
@@ -45,6 +50,8 @@ building with the bump noise of :mod:`brokenness.simulation.bumps` and the groun
 from __future__ import annotations
 
 import math
+import os
+import re
 import warnings
 import zlib
 from collections import Counter
@@ -56,9 +63,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import MapError, MapFormatError, ParameterError
+from ..errors import MapError, MapFormatError, MapSizeError, ParameterError
 from ..grid import OccupancyMap
 from ..io import MapWarning
+from ..io._files import path_text, read_file_bytes
 from .bumps import Bump
 from .ground_truth import SimulatedMap, break_run
 from .laser import Laser, LaserRun
@@ -66,6 +74,7 @@ from .mapper import ScanCounts, counts_to_map, grid_geometry, scan_counts
 from .options import BumpOptions, HonestRule
 
 __all__ = [
+    "MAX_LOG_BYTES",
     "MAX_RANGE_MARGIN",
     "CarmenLog",
     "WallCheck",
@@ -81,7 +90,13 @@ __all__ = [
 #: Relative margin below the max range at which a reading counts as a no return (0.2 %).
 MAX_RANGE_MARGIN: float = 0.002
 
+#: Largest CARMEN log read, in bytes: the file, and its text once gunzipped (256 MiB).
+MAX_LOG_BYTES: int = 256 << 20
+
 _GZIP_MAGIC = b"\x1f\x8b"
+_INFLATE_CHUNK = 16 << 20  # gzip text is inflated this many bytes at a time
+#: A laser line: starts with the message name (the first field is checked after splitting).
+_LASER_LINE = re.compile(rb"^(?:FLASER|ROBOTLASER1)[^\n]*", re.MULTILINE)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,34 +248,69 @@ def flaser_angles(n: int) -> NDArray[np.float64]:
 
 
 # -- reading ------------------------------------------------------------------------------------
-def _read_bytes(path: Path) -> bytes:
-    """The file's bytes, gunzipped when it starts with the gzip magic (partial if cut short)."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise MapError(f"no such CARMEN log: {path}") from None
-    except IsADirectoryError:
-        raise MapError(f"{path} is a directory, not a CARMEN log") from None
-    except OSError as exc:
-        raise MapError(f"cannot read {path}: {exc.strerror or exc}") from None
+def _read_bytes(path: Path, limit: int | None = None) -> bytes:
+    """The file's bytes, gunzipped when it starts with the gzip magic (partial if cut short).
+
+    The file must be a regular file of at most ``limit`` bytes (default
+    :data:`MAX_LOG_BYTES`), and so must its text.
+
+    Raises
+    ------
+    MapError
+        Missing, not a regular file (a FIFO, a device, a directory), unreadable.
+    MapSizeError
+        The file, or its gunzipped text, larger than ``limit`` bytes.
+    MapFormatError
+        An empty file, or a file that starts like gzip but is not.
+    """
+    cap = MAX_LOG_BYTES if limit is None else limit
+    name = path_text(path)
+    if not os.path.lexists(path):
+        raise MapError(f"no such CARMEN log: {name}")
+    data = read_file_bytes(path, cap, "CARMEN log")  # a regular file within the limit
     if not data.startswith(_GZIP_MAGIC):
         return data
+    return _gunzip(data, name, cap)
+
+
+def _gunzip(data: bytes, name: str, limit: int) -> bytes:
+    """Every gzip member of ``data`` inflated, in steps of :data:`_INFLATE_CHUNK` bytes.
+
+    Stops with a MapSizeError as soon as the text passes ``limit`` bytes (so a few hundred
+    kilobytes that inflate to gigabytes cost at most ``limit``); a stream cut short is read up
+    to where it ends, with a warning.
+    """
     parts: list[bytes] = []
+    total = 0
     rest = data
+    first = True
     while rest.startswith(_GZIP_MAGIC):  # gzip files may hold several members
         inflater = zlib.decompressobj(wbits=31)
+        pending = rest
         try:
-            parts.append(inflater.decompress(rest))
+            while True:
+                part = inflater.decompress(pending, _INFLATE_CHUNK)
+                total += len(part)
+                if total > limit:
+                    raise MapSizeError(
+                        f"{name}: the gunzipped CARMEN log is larger than the limit of "
+                        f"{limit} bytes"
+                    )
+                parts.append(part)
+                pending = inflater.unconsumed_tail
+                if inflater.eof or (not pending and len(part) < _INFLATE_CHUNK):
+                    break  # the member's end, or all input used with more wanted: cut short
         except zlib.error as exc:
-            if not parts:
-                raise MapFormatError(f"{path} is not a valid gzip file ({exc})") from None
+            if first:
+                raise MapFormatError(f"{name} is not a valid gzip file ({exc})") from None
             break
         if not inflater.eof:
             warnings.warn(
-                f"{path}: gzip data ends early; reading what is there", MapWarning, stacklevel=3
+                f"{name}: gzip data ends early; reading what is there", MapWarning, stacklevel=4
             )
             break
         rest = inflater.unused_data
+        first = False
     return b"".join(parts)
 
 
@@ -282,7 +332,7 @@ def _floats(rows: list[list[bytes]]) -> tuple[NDArray[np.float64], NDArray[np.bo
 class _Scans:
     """Well-formed scans of one message type, before the layout is chosen."""
 
-    order: list[NDArray[np.int64]] = field(default_factory=list)  # line numbers
+    order: list[NDArray[np.int64]] = field(default_factory=list)  # positions in the file
     key: list[tuple[float, ...]] = field(default_factory=list)  # layout per group
     poses: list[NDArray[np.float64]] = field(default_factory=list)
     ranges: list[NDArray[np.float64]] = field(default_factory=list)
@@ -377,7 +427,9 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
     Raises
     ------
     MapError
-        If the file is missing or unreadable.
+        If the file is missing, unreadable or not a regular file (a FIFO, a device...).
+    MapSizeError
+        If the file, or its text once gunzipped, is larger than :data:`MAX_LOG_BYTES`.
     MapFormatError
         If the file holds no valid ``FLASER`` or ``ROBOTLASER1`` line (not a CARMEN laser
         log), or is a corrupt gzip file.
@@ -395,18 +447,16 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
     (237, 181)
     """
     p = Path(path)
+    name = path_text(p)
     data = _read_bytes(p)
     flaser: list[tuple[int, list[bytes]]] = []
     robot: list[tuple[int, list[bytes]]] = []
-    for number, line in enumerate(data.split(b"\n")):
-        if line.startswith(b"FLASER"):
-            tok = line.split()
-            if tok[0] == b"FLASER":
-                flaser.append((number, tok))
-        elif line.startswith(b"ROBOTLASER1"):
-            tok = line.split()
-            if tok[0] == b"ROBOTLASER1":
-                robot.append((number, tok))
+    for line in _LASER_LINE.finditer(data):  # other lines are never split (nor copied)
+        tok = line.group().split()
+        if tok[0] == b"FLASER":
+            flaser.append((line.start(), tok))
+        elif tok[0] == b"ROBOTLASER1":
+            robot.append((line.start(), tok))
     scans = _parse_robotlaser(robot) if robot else _Scans()
     message = "ROBOTLASER1"
     if not scans.order:
@@ -418,7 +468,7 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
             if not (flaser or robot)
             else (f"no valid laser line ({scans.bad} malformed)")
         )
-        raise MapFormatError(f"{p} is not a CARMEN laser log: {what}")
+        raise MapFormatError(f"{name} is not a CARMEN laser log: {what}")
 
     # keep the most common beam layout (ties: the one seen first)
     sizes: Counter[tuple[float, ...]] = Counter()
@@ -440,16 +490,16 @@ def read_carmen(path: str | PathLike[str]) -> CarmenLog:
     else:
         max_range = float(np.concatenate([scans.max_range[i] for i in chosen]).max())
     if not max_range > 0:
-        raise MapFormatError(f"{p}: every laser reading is zero or negative")
+        raise MapFormatError(f"{name}: every laser reading is zero or negative")
     if scans.bad:
         warnings.warn(
-            f"{p}: skipped {scans.bad} malformed or truncated {message} line(s)",
+            f"{name}: skipped {scans.bad} malformed or truncated {message} line(s)",
             MapWarning,
             stacklevel=2,
         )
     if skipped_scans:
         warnings.warn(
-            f"{p}: skipped {skipped_scans} {message} scan(s) whose beam layout differs from "
+            f"{name}: skipped {skipped_scans} {message} scan(s) whose beam layout differs from "
             f"the {sizes[keep]} kept scans of {n} beams",
             MapWarning,
             stacklevel=2,
