@@ -303,3 +303,17 @@ def manhattan_distance_map_of_hits(hits: np.ndarray, shape: tuple[int, int]) -> 
     )
     mask[cells[ok, 1], cells[ok, 0]] = True
     return manhattan_distance_map(mask)
+
+
+def test_picture_distance_takes_arrays_and_refuses_what_is_no_map():
+    """Arrays are read as OccupancyMap.from_array reads them; a ragged list is a MapError,
+    not an AttributeError."""
+    walls = np.zeros((20, 20), bool)
+    walls[5, 2:18] = True
+    shifted = np.roll(walls, 1, axis=0)
+    assert picture_distance(walls, walls) == 0.0
+    assert picture_distance(walls, shifted) == picture_distance(
+        OccupancyMap.from_array(walls), OccupancyMap.from_array(shifted)
+    )
+    with pytest.raises(MapError):
+        picture_distance(np.array([[1, 2], [3]], dtype=object), walls)

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import MapError, MapSizeError
-from .limits import MAX_CELLS, check_cells
+from .limits import MAX_CELLS, MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
 
 __all__ = [
     "FREE",
@@ -28,6 +29,7 @@ __all__ = [
     "UNKNOWN",
     "OccupancyMap",
     "count_state",
+    "holds_states",
 ]
 
 #: Cell state of an occupied cell.
@@ -67,6 +69,51 @@ def count_state(states: NDArray[np.int8], state: int) -> int:
     )
 
 
+def holds_states(array: NDArray[np.integer]) -> bool:
+    """True when an integer array holds only the three cell states -1, 0 and 1.
+
+    The rule by which :meth:`OccupancyMap.from_array` (and so every function that takes an
+    array as a map) tells cell states from ``nav_msgs/OccupancyGrid`` percent values.
+    """
+    return bool(array.size) and int(array.min()) >= UNKNOWN and int(array.max()) <= OCCUPIED
+
+
+def _grid(value: ArrayLike) -> NDArray[Any]:
+    """``value`` as a 2D array (a :class:`MapError` for anything else, ragged lists too)."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nested lists, objects numpy cannot take
+        raise MapError("a map must be a 2D grid of numbers, rows of one length") from None
+    if arr.ndim != 2:
+        raise MapError(f"a map must be a 2D grid, got an array of shape {arr.shape}")
+    return arr
+
+
+def _resolution(value: object) -> float:
+    """A resolution as a float in the accepted range (:class:`MapError` otherwise)."""
+    try:
+        res = float(value)  # type: ignore[arg-type]  # anything: refused below if not a number
+    except (TypeError, ValueError):
+        res = math.nan
+    if not resolution_in_range(res):
+        raise MapError(
+            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
+            f"{MAX_RESOLUTION:g}], got {value!r}"
+        )
+    return res
+
+
+def _origin(value: object) -> tuple[float, float, float]:
+    """An origin as three finite floats ``(x, y, yaw)`` (:class:`MapError` otherwise)."""
+    try:
+        origin = tuple(float(v) for v in value)  # type: ignore[attr-defined]  # checked here
+    except (TypeError, ValueError):
+        origin = ()
+    if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
+        raise MapError(f"origin must be three finite numbers (x, y, yaw), got {value!r}")
+    return origin[0], origin[1], origin[2]
+
+
 @dataclass(frozen=True, eq=False)
 class OccupancyMap:
     """A 2D occupancy grid with three states and optional world geometry.
@@ -77,7 +124,9 @@ class OccupancyMap:
         :data:`OCCUPIED` (1), :data:`FREE` (0) or :data:`UNKNOWN` (-1) per cell. The array is
         copied if needed and made read-only.
     resolution : float, optional
-        Metres per cell. ``None`` when unknown (plain images, arrays).
+        Metres per cell, in [:data:`~brokenness.limits.MIN_RESOLUTION`,
+        :data:`~brokenness.limits.MAX_RESOLUTION`] (as for a map file). ``None`` when unknown
+        (plain images, arrays).
     origin : tuple of 3 floats, optional
         ``(x, y, yaw)`` of the lower-left corner of the map in the world frame (ROS
         ``map_server`` convention), metres and radians. ``None`` when unknown.
@@ -87,7 +136,8 @@ class OccupancyMap:
     Raises
     ------
     MapError
-        If ``states`` is not 2D, holds values other than -1, 0, 1, or the geometry is invalid.
+        If ``states`` is not a 2D grid, holds values other than -1, 0, 1, or the geometry is
+        invalid.
     MapSizeError
         If the map has a zero side or more than :func:`brokenness.limits.max_cells` cells.
     """
@@ -98,38 +148,28 @@ class OccupancyMap:
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
-        states = np.asarray(self.states)
-        if states.ndim != 2:
-            raise MapError(f"a map must be a 2D grid, got an array of shape {states.shape}")
+        states = _grid(self.states)
         rows, cols = states.shape
         if rows == 0 or cols == 0:
             raise MapSizeError(f"a map must have at least one row and column, got {rows}x{cols}")
         check_cells(rows, cols, "map")
-        if states.dtype != np.int8:
-            if not np.issubdtype(states.dtype, np.integer):
-                raise MapError(f"map states must be integers -1/0/1, got dtype {states.dtype}")
-            states = states.astype(np.int8)
-        # the three states are the consecutive integers -1, 0, 1: an int8 grid holds nothing
-        # else exactly when its smallest and largest values are within them (two reductions,
-        # no temporary grid)
+        if states.dtype != np.int8 and not np.issubdtype(states.dtype, np.integer):
+            raise MapError(f"map states must be integers -1/0/1, got dtype {states.dtype}")
+        # the three states are the consecutive integers -1, 0, 1: a grid holds nothing else
+        # exactly when its smallest and largest values are within them (two reductions, no
+        # temporary grid), checked before the cast to int8, which would wrap 255 to -1
         if int(states.min()) < UNKNOWN or int(states.max()) > OCCUPIED:
             raise MapError("map states must be -1 (unknown), 0 (free) or 1 (occupied)")
+        if states.dtype != np.int8:
+            states = states.astype(np.int8)
         if states is self.states and states.flags.writeable:
             states = states.copy()
         states.setflags(write=False)
         object.__setattr__(self, "states", states)
         if self.resolution is not None:
-            res = float(self.resolution)
-            if not math.isfinite(res) or res <= 0:
-                raise MapError(f"resolution must be a positive number of metres, got {res!r}")
-            object.__setattr__(self, "resolution", res)
+            object.__setattr__(self, "resolution", _resolution(self.resolution))
         if self.origin is not None:
-            origin = tuple(float(v) for v in self.origin)
-            if len(origin) != 3 or not all(math.isfinite(v) for v in origin):
-                raise MapError(
-                    f"origin must be three finite numbers (x, y, yaw), got {self.origin!r}"
-                )
-            object.__setattr__(self, "origin", origin)
+            object.__setattr__(self, "origin", _origin(self.origin))
 
     # -- constructors -------------------------------------------------------------------------
     @classmethod
@@ -140,28 +180,45 @@ class OccupancyMap:
         resolution: float | None = None,
         origin: tuple[float, float, float] | None = None,
         source: str | None = None,
+        occupancy_grid: bool = False,
     ) -> OccupancyMap:
-        """Build a map from a boolean or ``nav_msgs/OccupancyGrid``-style array.
+        """Build a map from a boolean, cell-state or ``nav_msgs/OccupancyGrid``-style array.
+
+        The one rule by which every function of the package that takes an array as a map
+        reads it (:func:`brokenness.compute_brokenness`, :func:`brokenness.register`,
+        ``.npy`` files).
 
         Parameters
         ----------
         array : array_like, 2D
-            ``bool``: True is occupied, False is free. Integers: -1 is unknown, 0 is free,
-            1..100 is an occupancy probability in percent (>= 65 occupied, <= 19 free, the
-            ROS ``map_saver`` thresholds, else unknown). Floats in [0, 1]: probability of
-            occupancy with the same thresholds; NaN is rejected.
+            ``bool``: True is occupied, False is free. Integers holding only -1, 0 and 1
+            (:func:`holds_states`): the three cell states (:data:`UNKNOWN`, :data:`FREE`,
+            :data:`OCCUPIED`, as :attr:`states`). Other integers: ``nav_msgs/OccupancyGrid``
+            values, -1 is unknown, 0..100 an occupancy probability in percent (>= 65
+            occupied, <= 19 free, the ROS ``map_saver`` thresholds, else unknown); the two
+            readings agree on -1 and 0, and a grid holding nothing but 1 % occupancy is
+            implausible. Floats in [0, 1]: probability of occupancy with the same
+            thresholds; NaN is rejected.
         resolution, origin, source
             See :class:`OccupancyMap`.
+        occupancy_grid : bool, optional
+            Integers are ``nav_msgs/OccupancyGrid`` values whatever they hold (for a reader
+            that knows where they come from, a ROS bag's grid).
 
         Returns
         -------
         OccupancyMap
+
+        Raises
+        ------
+        MapError
+            If ``array`` is not a 2D grid of numbers, or holds values out of range.
         """
-        arr = np.asarray(array)
-        if arr.ndim != 2:
-            raise MapError(f"a map must be a 2D grid, got an array of shape {arr.shape}")
+        arr = _grid(array)
         if arr.dtype == bool:
             states = np.where(arr, OCCUPIED, FREE).astype(np.int8)
+        elif np.issubdtype(arr.dtype, np.integer) and not occupancy_grid and holds_states(arr):
+            states = arr.astype(np.int8)
         elif np.issubdtype(arr.dtype, np.integer):
             if arr.size and (arr.min() < -1 or arr.max() > 100):
                 raise MapError("integer maps must hold -1 (unknown) or 0..100 (occupancy %)")

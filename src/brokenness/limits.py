@@ -17,7 +17,9 @@ memory:
   origin coordinates within :data:`MAX_COORDINATE`;
 * **measurable maps**: at least :data:`MIN_OCCUPIED_CELLS` occupied cells (the stopping
   rule's smallest partition, ``min_partition_cells`` of
-  :func:`brokenness.compute_brokenness`).
+  :func:`brokenness.compute_brokenness`);
+* **registration hypotheses** asked for (``max_candidates``, ``--candidates``): at most
+  :data:`MAX_CANDIDATES` (:func:`check_candidates`).
 
 The functions take the values to check and return nothing or the checked value; they hold no
 state.
@@ -28,10 +30,12 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from numbers import Integral
 
 from .errors import MapError, MapSizeError, ParameterError
 
 __all__ = [
+    "MAX_CANDIDATES",
     "MAX_CELLS",
     "MAX_CELLS_CEILING",
     "MAX_CELLS_ENV",
@@ -42,6 +46,7 @@ __all__ = [
     "MAX_WORKERS",
     "MIN_OCCUPIED_CELLS",
     "MIN_RESOLUTION",
+    "check_candidates",
     "check_cells",
     "check_measurable",
     "check_threshold",
@@ -76,6 +81,12 @@ MAX_COORDINATE: float = 1e9
 MIN_OCCUPIED_CELLS: int = 30
 #: Most worker processes (or Dask workers of a local cluster) a batch or a timeline starts.
 MAX_WORKERS: int = 256
+#: Most registration hypotheses a call asks for (``max_candidates`` of
+#: :func:`brokenness.register` and :func:`brokenness.compute_brokenness`): all that iFMI can
+#: give at the widest (64 rotation peaks, each with its 180-degree twin, 16 translations
+#: each: the largest ``rotation_peaks`` and ``translation_peaks``). A larger search budget
+#: examines nothing more, it only costs time.
+MAX_CANDIDATES: int = 2048
 
 
 def max_cells(environ: Mapping[str, str] | None = None) -> int:
@@ -200,6 +211,30 @@ def check_threshold(threshold: float, reference_shape: tuple[int, int] | None = 
                 "cells corner to corner): every cell would agree"
             )
     return c
+
+
+def check_candidates(value: object, name: str = "max_candidates") -> int:
+    """Validate a number of registration hypotheses: an integer in [1, :data:`MAX_CANDIDATES`].
+
+    Parameters
+    ----------
+    value : object
+    name : str
+        The option, for the message.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ParameterError
+    """
+    # numbers.Integral: Python's and numpy's integers (without importing numpy)
+    count = int(value) if isinstance(value, Integral) and not isinstance(value, bool) else 0
+    if not 1 <= count <= MAX_CANDIDATES:
+        raise ParameterError(f"{name} must be an integer in [1, {MAX_CANDIDATES}], got {value!r}")
+    return count
 
 
 def check_measurable(occupied_cells: int, name: str, minimum: int = MIN_OCCUPIED_CELLS) -> None:

@@ -19,6 +19,7 @@ maps a point of the map's world frame to the reference's world frame.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import cast
 
@@ -26,9 +27,13 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import ParameterError
 from .grid import OccupancyMap
 
 __all__ = ["RigidTransform", "wrap_angle"]
+
+#: The largest finite float: a value within +-it is finite (one comparison, NaN fails it).
+_LARGEST = sys.float_info.max
 
 
 def wrap_angle(angle: float) -> float:
@@ -56,6 +61,11 @@ class RigidTransform:
         Uniform scale ``s``; 1 for a rigid transform.
     world : RigidTransform, optional
         The same transform between the world frames (metres), when known.
+
+    Raises
+    ------
+    ParameterError
+        If a value is not a finite number, or the scale is not positive.
     """
 
     rotation: float = 0.0
@@ -65,10 +75,29 @@ class RigidTransform:
     world: RigidTransform | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "rotation", wrap_angle(self.rotation))
-        object.__setattr__(self, "tx", float(self.tx))
-        object.__setattr__(self, "ty", float(self.ty))
-        object.__setattr__(self, "scale", float(self.scale))
+        try:
+            rotation, tx, ty = float(self.rotation), float(self.tx), float(self.ty)
+            scale = float(self.scale)
+        except (TypeError, ValueError):
+            raise self._refused() from None
+        # four comparisons (a NaN fails each): cheap on a type made thousands of times a call
+        if not (
+            -_LARGEST <= rotation <= _LARGEST
+            and -_LARGEST <= tx <= _LARGEST
+            and -_LARGEST <= ty <= _LARGEST
+            and 0.0 < scale <= _LARGEST
+        ):
+            raise self._refused()
+        object.__setattr__(self, "rotation", wrap_angle(rotation))
+        object.__setattr__(self, "tx", tx)
+        object.__setattr__(self, "ty", ty)
+        object.__setattr__(self, "scale", scale)
+
+    def _refused(self) -> ParameterError:
+        return ParameterError(
+            "a transform needs finite numbers and a positive scale, got rotation="
+            f"{self.rotation!r}, tx={self.tx!r}, ty={self.ty!r}, scale={self.scale!r}"
+        )
 
     # -- views --------------------------------------------------------------------------------
     @property
@@ -110,15 +139,23 @@ class RigidTransform:
 
         Raises
         ------
-        ValueError
-            If the matrix is not a rotation times a positive scale.
+        ParameterError
+            (a :class:`ValueError`) If the matrix is not a finite rotation times a positive
+            scale.
         """
-        m = np.asarray(matrix, dtype=float)
+        try:
+            m = np.asarray(matrix, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                "a transform matrix must be a 3x3 or 2x3 array of numbers"
+            ) from None
+        if m.shape not in ((3, 3), (2, 3)):
+            raise ParameterError(f"a transform matrix must be 3x3 or 2x3, got shape {m.shape}")
         a, b, tx = m[0]
         c, d, ty = m[1]
         scale = math.hypot(a, c)
-        if scale <= 0 or not np.allclose([a, b], [d, -c], atol=1e-9 * max(1.0, scale)):
-            raise ValueError("matrix is not a rotation with a uniform positive scale")
+        if not scale > 0 or not np.allclose([a, b], [d, -c], atol=1e-9 * max(1.0, scale)):
+            raise ParameterError("matrix is not a rotation with a uniform positive scale")
         if abs(scale - 1.0) < 1e-9:  # round-off of products of rotations
             scale = 1.0
         return cls(math.atan2(c, a), tx, ty, scale)

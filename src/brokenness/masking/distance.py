@@ -8,6 +8,7 @@ the same values in ``float32`` (see :func:`_bilinear_whole`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import cast
 
@@ -21,6 +22,7 @@ __all__ = [
     "compact_distance_map",
     "lookup_distance",
     "manhattan_distance_map",
+    "remap_points",
     "sample_at",
     "sample_xy",
     "within",
@@ -35,6 +37,15 @@ _NO_CELL = 65535
 #: Points per ``cv2.remap`` call are laid out in rows of this many (OpenCV asserts sides
 #: under 32767).
 _ROW_POINTS = 1024
+#: ``cv2.remap`` asserts that the grid it reads has sides under this (``SHRT_MAX``).
+REMAP_SIDE = 32767
+#: A grid with a side of :data:`REMAP_SIDE` or more is read in windows of this side, plus
+#: :data:`_WINDOW_MARGIN` cells (see :func:`remap_points`).
+_WINDOW = 16384
+#: Cells a point may read past the first of its cells: bilinear interpolation reads that
+#: cell and the next, and OpenCV's fixed-point rounding of the coordinate (1/32 of a cell)
+#: can move both one cell on.
+_WINDOW_MARGIN = 2
 #: Largest exponent of a coordinate's bucket (coordinates of 2**7 and more share one), and
 #: so the patches a row or column of an atlas holds, at most (see :func:`_bilinear_whole`).
 _TOP_BUCKET = 7
@@ -190,9 +201,10 @@ def sample_at(
     """Samples of a float32 grid at (sub-cell) points, ``outside`` off the grid.
 
     One ``cv2.remap`` over the points laid out as a two-channel map: as given when that fits
-    (OpenCV wants sides under 32767), in rows of 1024 points otherwise. A ``uint16`` grid of
-    whole numbers (:func:`compact_distance_map`) gives the samples of the same values in
-    ``float32``, bit for bit.
+    (OpenCV wants sides under 32767), in rows of 1024 points otherwise (a grid with a side
+    of 32767 cells or more: in windows, :func:`remap_points`, the same samples). A
+    ``uint16`` grid of whole numbers (:func:`compact_distance_map`) gives the samples of the
+    same values in ``float32``, bit for bit.
 
     Parameters
     ----------
@@ -267,7 +279,8 @@ def sample_xy(
         return np.zeros(shape, dtype=np.float32)
     cols = shape[-1] if x.ndim else 1
     rows = x.size // cols
-    if field.dtype == np.uint16 or max(rows, cols) >= 32_000:  # sample_at's own layouts
+    # sample_at's own layouts (and windows of a grid too large for one remap)
+    if field.dtype == np.uint16 or max(rows, cols) >= 32_000 or max(field.shape) >= REMAP_SIDE:
         return sample_at(field, np.stack([x, y], axis=-1), outside, nearest=nearest)
     out = cv2.remap(
         field,
@@ -287,7 +300,10 @@ def _remap(
     outside: float,
 ) -> NDArray[np.float32] | NDArray[np.uint16]:
     """``cv2.remap`` of ``field`` at the points ``grid`` (shape (..., 2), float32), flat, in
-    the field's type: the points as given when they fit OpenCV's sides, else in rows."""
+    the field's type: the points as given when they fit OpenCV's sides, else in rows (a
+    field too large for OpenCV: in windows, :func:`remap_points`)."""
+    if max(field.shape) >= REMAP_SIDE:
+        return remap_points(field, grid.reshape(-1, 2), interpolation, outside)
     count = math.prod(grid.shape[:-1])
     if grid.ndim == 2:
         grid = grid.reshape(1, -1, 2)
@@ -307,6 +323,80 @@ def _remap(
     )
     samples = cast("NDArray[np.float32] | NDArray[np.uint16]", np.asarray(out).reshape(-1))
     return samples[:count]
+
+
+def remap_points(
+    field: NDArray[np.float32] | NDArray[np.uint16],
+    xy: NDArray[np.float32],
+    interpolation: int,
+    outside: float,
+    window: int = _WINDOW,
+) -> NDArray[np.float32] | NDArray[np.uint16]:
+    """``cv2.remap`` of a grid of any size at the points ``xy``, in the grid's type.
+
+    OpenCV reads grids with sides under :data:`REMAP_SIDE` only. A sample reads the cells
+    around its point alone, so a larger grid is read in windows: each point goes to the
+    window of the first cell it reads (the floor of its coordinates; off the grid, the
+    window at the nearest edge; NaN, the first), whose cells reach :data:`_WINDOW_MARGIN`
+    past it, and is moved by the window's corner. The move is a multiple of ``window``, a
+    power of two: exact in float32 (for coordinates under ``2**24``), and OpenCV splits the
+    moved coordinate into the same fraction and the same whole part less the corner (it
+    rounds half to even, which an even move keeps). So every sample is the one of the whole
+    grid, bit for bit; a window's edges are the grid's wherever a point reads past them.
+    (Where OpenCV makes NaN, for a coordinate or an ``outside`` that is not finite, it does
+    so depending on the points beside it in its vectors; no caller of this package asks for
+    such samples.)
+
+    Parameters
+    ----------
+    field : ndarray of float32 or uint16, 2D
+    xy : ndarray of float32, shape (N, 2)
+        ``(x, y) = (column, row)`` coordinates.
+    interpolation : int
+        ``cv2.INTER_NEAREST`` or ``cv2.INTER_LINEAR``.
+    outside : float
+        The value of cells off the grid.
+    window : int, optional
+        Side of the windows: a power of two below ``REMAP_SIDE - _WINDOW_MARGIN``.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    out = np.empty(xy.shape[0], dtype=field.dtype)
+    if out.size == 0:
+        return out
+    h, w = field.shape
+    across = -(-w // window)
+    # each point's window, row by row; in 16 bits when they fit (numpy's stable sort of
+    # them is then a radix sort)
+    kind = np.dtype(np.uint16 if -(-h // window) * across < 1 << 16 else np.intp)
+    key = _window_of(xy[:, 1], h, window).astype(kind)
+    key *= across
+    key += _window_of(xy[:, 0], w, window).astype(kind)
+    groups: Sequence[NDArray[np.intp] | slice] = (slice(None),)  # one window: every point
+    if int(key.min()) != int(key.max()):
+        order = np.argsort(key, kind="stable")
+        groups = np.split(order, np.flatnonzero(np.diff(key[order])) + 1)
+    for idx in groups:
+        wy, wx = divmod(int(key[idx][0]), across)
+        r0, c0 = wy * window, wx * window
+        rows = slice(r0, min(r0 + window + _WINDOW_MARGIN, h))
+        cols = slice(c0, min(c0 + window + _WINDOW_MARGIN, w))
+        moved = xy[idx] - np.array([c0, r0], dtype=np.float32)  # whole cells: exact
+        out[idx] = _remap(field[rows, cols], moved, interpolation, outside)
+    return out
+
+
+def _window_of(v: NDArray[np.float32], side: int, window: int) -> NDArray[np.float32]:
+    """The window (of ``window`` cells, a power of two, along an axis of ``side``) of the
+    first cell each coordinate reads, as whole float32 numbers: off the axis, the window at
+    the nearest end; NaN, the first."""
+    k = np.multiply(v, np.float32(1.0 / window))  # exact: ``window`` is a power of two
+    np.floor(k, out=k)
+    np.clip(k, 0, (side - 1) // window, out=k)
+    k[np.isnan(k)] = 0
+    return k
 
 
 def _whole_samples(

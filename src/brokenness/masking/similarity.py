@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 import cv2
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import MapError
 from ..grid import FREE, OCCUPIED, OccupancyMap, count_state
@@ -179,7 +179,7 @@ def _mean_distance(
     return float(_distance_sum(of_box, kind, to_box, kind)) / count
 
 
-def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
+def picture_distance(a: OccupancyMap | ArrayLike, b: OccupancyMap | ArrayLike) -> float:
     r"""Picture distance Psi between two maps of the same shape (Birk & Carpin 2006).
 
     .. math::
@@ -197,8 +197,9 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
 
     Parameters
     ----------
-    a, b : OccupancyMap
-        Two maps on the same grid (same shape).
+    a, b : OccupancyMap or array_like
+        Two maps on the same grid (same shape); an array is read as
+        :meth:`OccupancyMap.from_array` reads it.
 
     Returns
     -------
@@ -209,7 +210,7 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     Raises
     ------
     MapError
-        If the shapes differ.
+        If the shapes differ, or an array is not a map.
 
     References
     ----------
@@ -225,6 +226,8 @@ def picture_distance(a: OccupancyMap, b: OccupancyMap) -> float:
     >>> picture_distance(m, m)
     0.0
     """
+    a = a if isinstance(a, OccupancyMap) else OccupancyMap.from_array(a)
+    b = b if isinstance(b, OccupancyMap) else OccupancyMap.from_array(b)
     if a.shape != b.shape:
         raise MapError(f"picture distance needs maps of one shape, got {a.shape} and {b.shape}")
     cap = float(sum(a.shape))

@@ -13,6 +13,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from ..errors import ParameterError
+from ..limits import check_candidates
 from ..registration.methods import METHODS
 
 __all__ = ["BrokennessOptions", "Settings"]
@@ -46,8 +47,9 @@ class BrokennessOptions:
     max_partitions : int
         Upper bound on the number of partitions (default 16): the recursion always ends.
     max_candidates : int
-        Registration hypotheses examined per step (default 12; the recovery's searches
-        among suspect cells ask for twice as many). A search budget, not a test: the tests
+        Registration hypotheses examined per step (default 12, at most
+        :data:`~brokenness.limits.MAX_CANDIDATES`; the recovery's searches among suspect
+        cells ask for twice as many). A search budget, not a test: the tests
         a hypothesis must pass do not depend on it. See the README ("The search breadth",
         under "How it is computed") for how it was chosen.
     seed : int or None
@@ -92,10 +94,7 @@ class BrokennessOptions:
             raise ParameterError(
                 f"max_partitions must be an integer >= 1, got {self.max_partitions!r}"
             )
-        if not (_whole(self.max_candidates) and self.max_candidates >= 1):
-            raise ParameterError(
-                f"max_candidates must be an integer >= 1, got {self.max_candidates!r}"
-            )
+        check_candidates(self.max_candidates)  # in [1, MAX_CANDIDATES]
         if self.seed is not None and not _whole(self.seed):
             raise ParameterError(f"seed must be an integer, got {self.seed!r}")
         given = self.registration_options

@@ -502,8 +502,9 @@ def _region_candidates(
     settings: Settings,
 ) -> list[Candidate]:
     """Hypotheses from regions of the remainder: the tiles of 2 x 2 and 3 x 3 grids over its
-    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped, and
-    the tiles left once ``registrar`` has spent its budget)."""
+    box, each registered on its own (tiles with fewer than ``min_cells`` cells are skipped, so
+    are tiles of isolated cells only, which the registration does not see, and the tiles left
+    once ``registrar`` has spent its budget)."""
     r, c = rows[remaining], cols[remaining]
     r0, r1, c0, c1 = int(r.min()), int(r.max()) + 1, int(c.min()), int(c.max()) + 1
     out: list[Candidate] = []
@@ -528,6 +529,8 @@ def _region_candidates(
                     settings.drop_isolated,
                     settings.as_cells,
                 )
+                if occupied_count(states) == 0:
+                    continue  # only isolated cells, hidden from the registration: nothing left
                 out += candidates_of(registrar, whole, states, settings.max_candidates)
     return out
 

@@ -577,6 +577,8 @@ def _candidates(
     settings: Settings,
 ) -> tuple[list[int], list[RigidTransform]]:
     """Per tile, the refit of the partition that explains most of its cells (step 2)."""
+    if points.shape[0] == 0:  # every cell isolated (a map of specks): no tile to refit
+        return [], []
     tile = (points[:, 1] // TILE_SIDE).astype(np.int64) * (1 << 32) + (
         points[:, 0] // TILE_SIDE
     ).astype(np.int64)

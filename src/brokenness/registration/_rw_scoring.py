@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from ..grid import FREE, OCCUPIED
 from ..masking import manhattan_distance_map
+from ..masking.distance import REMAP_SIDE, remap_points
 
 __all__: list[str] = []
 
@@ -168,6 +169,11 @@ def _lookup(
     # the number of threads; these are exact float32 operations in a fixed order.
     coords = matrix[:, 0:1] * points[0] + matrix[:, 1:2] * points[1] + matrix[:, 2:3]
     w = matrix.shape[0] // 2
+    table = tables.tables[kind_index]
+    if max(table.shape) >= REMAP_SIDE:  # too large for one remap: read in windows
+        xy = np.stack([coords[:w].reshape(-1), coords[w:].reshape(-1)], axis=1)
+        found = remap_points(table, xy, cv2.INTER_NEAREST, UNKNOWN_VALUE)
+        return np.asarray(found, dtype=np.uint16).reshape(coords[:w].shape)
     values = cv2.remap(
         tables.tables[kind_index],
         coords[:w],

@@ -8,8 +8,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import MapError, ParameterError
-from ..grid import OCCUPIED, UNKNOWN, OccupancyMap
+from ..errors import MapError
+from ..grid import OccupancyMap
+from ..limits import check_candidates
 from ..transform import RigidTransform
 from .base import Candidate, Registration
 from .methods import make_registrar
@@ -36,25 +37,23 @@ def _search_options(method: str, examined: int) -> dict[str, Any]:
 def as_map(value: OccupancyMap | ArrayLike, what: str = "map") -> OccupancyMap:
     """An :class:`OccupancyMap` from a map or a 2D array.
 
-    ``bool`` arrays are occupied (True) / free (False); integer arrays whose values are all
-    in {-1, 0, 1} are cell states (unknown / free / occupied, as
-    :attr:`OccupancyMap.states`); other integer arrays and float arrays are read as
-    ``nav_msgs/OccupancyGrid`` occupancy values by :meth:`OccupancyMap.from_array`.
+    Arrays are read by :meth:`OccupancyMap.from_array`, as every function of the package
+    reads them: ``bool`` arrays are occupied (True) / free (False); integer arrays holding
+    only -1, 0 and 1 are cell states (unknown / free / occupied, as
+    :attr:`OccupancyMap.states`); other integer arrays and float arrays are
+    ``nav_msgs/OccupancyGrid`` occupancy values.
 
     Raises
     ------
     MapError
-        If the array is not a valid map.
+        If the array is not a valid map (the message names ``what``).
     """
     if isinstance(value, OccupancyMap):
         return value
-    arr = np.asarray(value)
-    if arr.ndim != 2:
-        raise MapError(f"the {what} must be a 2D grid, got an array of shape {arr.shape}")
-    if np.issubdtype(arr.dtype, np.integer) and arr.size:
-        if int(arr.min()) >= UNKNOWN and int(arr.max()) <= OCCUPIED:
-            return OccupancyMap(arr.astype(np.int8, copy=False))
-    return OccupancyMap.from_array(arr)
+    try:
+        return OccupancyMap.from_array(value)
+    except MapError as exc:
+        raise type(exc)(f"the {what}: {exc}") from None
 
 
 def register(
@@ -80,7 +79,8 @@ def register(
         Seed of the stochastic method (iFMI is deterministic and ignores it).
     max_candidates : int, default 3
         Number of hypotheses reported in :attr:`Registration.candidates` (fewer when the
-        method finds no more distinct ones). It does not change the answer: the method is
+        method finds no more distinct ones), at most
+        :data:`~brokenness.limits.MAX_CANDIDATES`. It does not change the answer: the method is
         always asked for ``max(EXAMINED_HYPOTHESES, max_candidates)`` distinct hypotheses
         (:data:`EXAMINED_HYPOTHESES` = 12; for iFMI the most promising ones of its spectral
         search, each refined at full resolution), which it ranks by the cells of ``moving``
@@ -126,16 +126,13 @@ def register(
     >>> [round(v) for v in reg.transform.translation], round(reg.rotation_deg)
     ([5, -7], 0)
     """
+    max_candidates = check_candidates(max_candidates)  # in [1, MAX_CANDIDATES], before work
     ref_map = as_map(reference, "reference")
     mov_map = as_map(moving, "moving map")
     if ref_map.n_occupied == 0:
         raise MapError("the reference has no occupied cell, there is nothing to register to")
     if mov_map.n_occupied == 0:
         raise MapError("the moving map has no occupied cell, there is nothing to register")
-    if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)):
-        raise ParameterError(f"max_candidates must be a positive integer, got {max_candidates!r}")
-    if max_candidates < 1:
-        raise ParameterError(f"max_candidates must be a positive integer, got {max_candidates!r}")
     start = time.perf_counter()
     work = mov_map
     # original moving cells -> cells of the map that is registered (identity unless resampled)

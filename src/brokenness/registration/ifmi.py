@@ -663,8 +663,9 @@ class IFMIRegistrar:
         scored: list[tuple[int, float, int, NDArray[np.float64]]] = []
         # the centroids of the moving points under each kept hypothesis (the placements
         # themselves are made again where two centroids are close: one (N, 2) array at a
-        # time, not one for each of the max_candidates)
-        centres = np.empty((max_candidates, 2))
+        # time, not one for each of the max_candidates); one a hypothesis at most, however
+        # many are asked for
+        centres = np.empty((min(max_candidates, len(order)), 2))
         best_n0 = prescreen[order[0]][0]
         if ref.distance is not None:  # the first promising ones, refined together
             promising = [prescreen[k][2] for k in order if 2 * prescreen[k][0] >= best_n0]

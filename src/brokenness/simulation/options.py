@@ -10,8 +10,9 @@ rule of :mod:`brokenness.simulation.ground_truth`). One object, checked once, is
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from numbers import Real
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,26 @@ from ..errors import ParameterError
 from .bumps import Bump, draw_bumps, draw_k_bumps
 
 __all__ = ["BumpOptions", "HonestRule"]
+
+
+def _check_number(name: str, value: object) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is a real number (its range, NaN
+    outside every one, is checked where it is used)."""
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise ParameterError(f"{name} must be a number, got {value!r}")
+
+
+def _bumps(bumps: Iterable[Any]) -> tuple[Bump, ...]:
+    """The explicit bumps given (:class:`ParameterError` unless a sequence of :class:`Bump`)."""
+    try:
+        items = tuple(bumps)
+    except TypeError:  # not a sequence at all
+        items = (None,)
+    if not all(isinstance(b, Bump) for b in items):
+        raise ParameterError(
+            f"bumps must be a number of bumps or a sequence of Bump, got {bumps!r}"
+        )
+    return items
 
 
 @dataclass(frozen=True)
@@ -47,6 +68,13 @@ class HonestRule:
     merge_threshold: float = 4.0
     min_partition_fraction: float = 0.02
     min_partition_cells: int = 30
+
+    def __post_init__(self) -> None:
+        for name in ("threshold", "merge_threshold", "min_partition_fraction"):
+            _check_number(name, getattr(self, name))
+        cells = self.min_partition_cells
+        if isinstance(cells, bool) or not isinstance(cells, int | np.integer) or cells < 1:
+            raise ParameterError(f"min_partition_cells must be an integer >= 1, got {cells!r}")
 
     def parameters(self) -> dict[str, Any]:
         """JSON-ready entries of a simulation's ``parameters``."""
@@ -115,6 +143,12 @@ class BumpOptions:
     rule: HonestRule = field(default_factory=HonestRule)
 
     def __post_init__(self) -> None:
+        for name in ("bump_radius", "max_rotation", "min_rotation"):
+            _check_number(name, getattr(self, name))
+        if self.bump_probability is not None:
+            _check_number("bump_probability", self.bump_probability)
+        if not isinstance(self.rule, HonestRule):
+            raise ParameterError(f"rule must be a HonestRule, got {self.rule!r}")
         modes = sum(v is not None for v in (self.degree, self.bumps, self.bump_probability))
         if modes > 1:
             raise ParameterError("give at most one of degree, bumps and bump_probability")
@@ -136,7 +170,7 @@ class BumpOptions:
         if isinstance(self.bumps, int | np.integer):
             object.__setattr__(self, "bumps", int(self.bumps))
         elif self.bumps is not None:
-            object.__setattr__(self, "bumps", tuple(self.bumps))
+            object.__setattr__(self, "bumps", _bumps(self.bumps))
 
     @property
     def drawn(self) -> bool:

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from numbers import Real
 
 import numpy as np
 
 from ..errors import ParameterError
-from ..limits import check_cells
+from ..limits import MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
 from .building import check_building_size, generate_building
 from .bumps import Bump
 from .ground_truth import NOT_OCCUPIED as NOT_OCCUPIED  # defined here before ground_truth
@@ -31,6 +32,45 @@ def _check_world(width: float, height: float, resolution: float, options: BumpOp
     check_building_size(width, height)
     check_cells(height / resolution, width / resolution, f"a {width:g} m x {height:g} m map")
     options.check_radius((0.0, 0.0, width, height))
+
+
+def _resolution(value: object) -> float:
+    """The resolution of the simulated maps, in the range a map's must be in."""
+    try:
+        resolution = float(value)  # type: ignore[arg-type]  # anything: refused if no number
+    except (TypeError, ValueError):
+        resolution = math.nan
+    if not resolution_in_range(resolution):
+        raise ParameterError(
+            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
+            f"{MAX_RESOLUTION:g}], got {value!r}"
+        )
+    return resolution
+
+
+def _sides(size: object) -> tuple[float, float]:
+    """The building's width and height from ``size``: one number, or a pair of numbers."""
+    values = (size, size) if isinstance(size, Real) else size
+    try:
+        width, height = (float(v) for v in values)  # type: ignore[attr-defined]  # checked
+    except (TypeError, ValueError):  # not a number or a pair of numbers
+        raise ParameterError(
+            f"size must be a number of metres or a pair (width, height), got {size!r}"
+        ) from None
+    return width, height
+
+
+def _check_run(laser: object, spacing: object, pose_sigma: object) -> None:
+    """The types of the run's keywords (their ranges are checked where the run is made)."""
+    if not isinstance(laser, Laser):
+        raise ParameterError(f"laser must be a Laser, got {laser!r}")
+    pair = tuple(pose_sigma) if isinstance(pose_sigma, tuple | list) else ()
+    numbers = (spacing, *pair)
+    if len(pair) != 2 or not all(isinstance(v, Real) and not isinstance(v, bool) for v in numbers):
+        raise ParameterError(
+            f"spacing must be a number of metres and pose_sigma a pair of numbers (metres, "
+            f"radians), got {spacing!r} and {pose_sigma!r}"
+        )
 
 
 def simulate_broken_map(
@@ -83,7 +123,8 @@ def simulate_broken_map(
     size : float or (float, float)
         Building width and height, metres (15 m at 0.05 m/cell: about 300 x 300 cells).
     resolution : float
-        Metres per cell of both maps (the building is rasterised at half of it).
+        Metres per cell of both maps (the building is rasterised at half of it), in
+        [:data:`~brokenness.limits.MIN_RESOLUTION`, :data:`~brokenness.limits.MAX_RESOLUTION`].
     laser : Laser, optional
         Default :class:`~brokenness.simulation.laser.Laser` (181 beams over 270 deg, 8 m).
     spacing : float
@@ -127,11 +168,11 @@ def simulate_broken_map(
         max_attempts=max_attempts,
         rule=HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
     )
-    if not (math.isfinite(resolution) and resolution > 0):
-        raise ParameterError(f"resolution must be a positive number, got {resolution!r}")
-    width, height = (size, size) if isinstance(size, int | float) else size
-    _check_world(float(width), float(height), resolution, options)
+    resolution = _resolution(resolution)
+    width, height = _sides(size)
+    _check_world(width, height, resolution, options)
     laser = Laser() if laser is None else laser
+    _check_run(laser, spacing, pose_sigma)
     building = generate_building(
         options.seed, width=float(width), height=float(height), truth_resolution=resolution / 2
     )
