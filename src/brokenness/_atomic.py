@@ -2,19 +2,29 @@
 
 A failure is an :class:`AtomicWriteError` (an :class:`OSError`) that names the file asked
 for, never the temporary file next to it: ``cannot write /proc/x.json: No such file or
-directory``.
+directory``. Only regular files are replaced: a character device (``/dev/null``, a terminal)
+is written in place, as a shell redirection would, and any other special file (a FIFO, a
+socket, a block device) or a folder is refused, never replaced by a file.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-__all__ = ["AtomicWriteError", "atomic_path", "atomic_write_bytes", "atomic_write_text"]
+__all__ = [
+    "AtomicWriteError",
+    "atomic_path",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "sync_file",
+]
 
 
 class AtomicWriteError(OSError):
@@ -39,18 +49,32 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
 
     On any exception (KeyboardInterrupt included) the temporary file is removed and
     ``path`` is left as it was. A new file gets mode 0644, a replaced one keeps its mode.
+    When ``path`` is a character device (``/dev/null``, a terminal) it is yielded itself and
+    written in place: replacing it would put a file where the device was.
 
     Raises
     ------
     AtomicWriteError
-        If the temporary file cannot be made, or it cannot replace ``path``; an OSError of
-        the body about the temporary file is raised as one too.
+        If ``path`` is a folder or a special file other than a character device, the
+        temporary file cannot be made, or it cannot replace ``path``; an OSError of the body
+        about the temporary file is raised as one too.
     """
     target = Path(path)
     try:
         # a new file gets the usual 0644 (mkstemp's 0600 would hide results from other
         # users); a file that is replaced keeps its mode
-        mode = target.stat().st_mode & 0o7777 if target.exists() else 0o644
+        kind = target.stat().st_mode if target.exists() else stat.S_IFREG | 0o644
+    except OSError as exc:
+        raise _write_error(exc, target) from None
+    if stat.S_ISCHR(kind):  # /dev/null, a terminal: written in place, never replaced
+        yield target
+        return
+    if not stat.S_ISREG(kind):
+        code = errno.EISDIR if stat.S_ISDIR(kind) else errno.EINVAL
+        reason = os.strerror(code) if code == errno.EISDIR else "not a regular file"
+        raise AtomicWriteError(code, reason, str(target))
+    mode = stat.S_IMODE(kind)
+    try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
         os.close(fd)
     except OSError as exc:
@@ -92,4 +116,14 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
 def _write_and_sync(fh: IO[bytes], data: bytes) -> None:
     fh.write(data)
     fh.flush()
-    os.fsync(fh.fileno())
+    sync_file(fh)
+
+
+def sync_file(fh: IO[bytes]) -> None:
+    """``os.fsync`` an open file; a device written in place (``/dev/null``), which cannot be
+    synchronised (``EINVAL``), is left as it is."""
+    try:
+        os.fsync(fh.fileno())
+    except OSError as exc:
+        if exc.errno != errno.EINVAL:
+            raise

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError, NothingFoundWarning, ParameterError
-from ..limits import MAX_WORKERS
+from ..limits import MAX_WORKERS, max_cells
 from .manifest import OVERLAY_KINDS, Manifest, Pair, pairs_of
 
 if TYPE_CHECKING:
@@ -419,6 +419,38 @@ def parse_memory(text: str) -> int:
     return int(value)
 
 
+def _check_environment(n_workers: int, dask: bool) -> None:
+    """The environment settings a batch depends on, checked once before any work.
+
+    ``$BROKENNESS_MAX_CELLS`` (read by every pair's checks: a bad value would fail every
+    pair) and ``$BROKENNESS_WORKER_MEMORY`` are refused with one line when bad, whatever the
+    number of workers. The memory limit bounds the processes of a local pool only
+    (``n_workers`` > 1): where the pairs run in this process, or on a Dask cluster, a
+    warning says that it is not applied.
+
+    Raises
+    ------
+    ParameterError
+    """
+    max_cells()
+    limit = os.environ.get(WORKER_MEMORY_ENV)
+    if not limit:
+        return
+    parse_memory(limit)
+    if dask:
+        where = "a Dask cluster's workers have their own (dask worker --memory-limit)"
+    elif n_workers == 1:
+        where = "with one worker the pairs are evaluated in this process"
+    else:
+        return
+    warnings.warn(
+        f"{WORKER_MEMORY_ENV}={limit} is not applied: it limits the worker processes of "
+        f"workers > 1 only; {where}",
+        UserWarning,
+        stacklevel=3,
+    )
+
+
 def _alive(pid: int) -> bool:
     """True while process ``pid`` exists and is not a zombie."""
     try:
@@ -650,45 +682,51 @@ def _cluster_pair(pair: Pair, out_dir: Path, options: PairOptions) -> RowResult:
     return evaluate_pair(pair, out_dir, options)
 
 
-def _run_dask(
-    pairs: Sequence[Pair],
-    out: Path,
-    options: PairOptions,
-    done: Callable,
-    *,
-    scheduler: str | None,
-    local_cluster: bool,
-    workers: int,
-    connect_timeout: float = 10.0,
-) -> None:
+@contextlib.contextmanager
+def _dask_session(
+    scheduler: str | None, local_cluster: bool, workers: int, connect_timeout: float
+) -> Iterator[tuple[Any, bool]]:
+    """``(client, local)``: a client of the scheduler or of a local cluster started here,
+    closed (with its cluster) when the block ends. Entered before the progress bar shows,
+    so that a scheduler that cannot be reached is one line of error, nothing else."""
     from .._threads import single_threaded_children
-    from .cluster import dask_client, import_distributed
+    from .cluster import dask_client
 
-    distributed = import_distributed()
     with single_threaded_children():  # a local cluster's worker processes
         client, cluster = dask_client(scheduler, local_cluster, workers, connect_timeout)
-    task = _cluster_pair if cluster is not None else evaluate_pair
     try:
         with client:
-            futures = {
-                client.submit(task, p, out, options, key=f"brokenness-pair-{p.id}", pure=False): p
-                for p in pairs
-            }
-            try:
-                for fut in distributed.as_completed(list(futures), loop=client.loop):
-                    pair = futures[fut]
-                    try:
-                        row = fut.result()
-                    except Exception as exc:  # worker lost, killed...
-                        row = RowResult.failed(pair, f"worker failed: {one_line(exc)}")
-                        record_error(out, pair, row.error or "")
-                    done(row)
-            except BaseException:
-                client.cancel(list(futures))
-                raise
+            yield client, cluster is not None
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _run_dask(
+    pairs: Sequence[Pair], out: Path, options: PairOptions, done: Callable, session: Any
+) -> None:
+    """The pairs on the Dask cluster of ``session`` (:func:`_dask_session`)."""
+    from .cluster import import_distributed
+
+    distributed = import_distributed()
+    client, local = session
+    task = _cluster_pair if local else evaluate_pair
+    futures = {
+        client.submit(task, p, out, options, key=f"brokenness-pair-{p.id}", pure=False): p
+        for p in pairs
+    }
+    try:
+        for fut in distributed.as_completed(list(futures), loop=client.loop):
+            pair = futures[fut]
+            try:
+                row = fut.result()
+            except Exception as exc:  # worker lost, killed...
+                row = RowResult.failed(pair, f"worker failed: {one_line(exc)}")
+                record_error(out, pair, row.error or "")
+            done(row)
+    except BaseException:
+        client.cancel(list(futures))
+        raise
 
 
 # -- summary ----------------------------------------------------------------------------------
@@ -770,8 +808,12 @@ def summary_markdown(rows: Sequence[RowResult]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The summary files a batch writes into its output folder.
+SUMMARY_NAMES: tuple[str, str] = ("summary.csv", "summary.md")
+
+
 def _write_summary(out: Path, rows: Sequence[RowResult]) -> tuple[Path, Path]:
-    csv_path, md_path = out / "summary.csv", out / "summary.md"
+    csv_path, md_path = (out / name for name in SUMMARY_NAMES)
     atomic_write(csv_path, summary_csv(rows).encode())
     atomic_write(md_path, summary_markdown(rows).encode())
     return csv_path, md_path
@@ -930,8 +972,9 @@ def run_batch(
     ManifestError
         If the manifest is bad.
     ParameterError
-        For bad options (unknown, or out of range), a missing Dask, or an unreachable
-        scheduler.
+        For bad options (unknown, or out of range), a bad ``$BROKENNESS_MAX_CELLS`` or
+        ``$BROKENNESS_WORKER_MEMORY``, a missing Dask, or a scheduler address that is none
+        or cannot be reached.
     BatchLockedError
         If another batch is writing into ``out_dir``.
 
@@ -946,7 +989,9 @@ def run_batch(
     dropped, the running workers are stopped, and the summary is written only once they have
     exited (a pair whose zip was written counts as done). ``$BROKENNESS_WORKER_MEMORY``
     (e.g. ``4G``) bounds each worker's address space. ``workers=1`` evaluates the pairs in
-    this process, without that isolation.
+    this process, without that isolation (and without that bound: a warning says so, as on
+    a Dask cluster). ``$BROKENNESS_MAX_CELLS`` and ``$BROKENNESS_WORKER_MEMORY`` are checked
+    before any work: a bad value is a :class:`ParameterError`, not a failure of every pair.
 
     The output folder is locked (``.brokenness-batch.lock``) for the whole run: a second
     batch on the same folder is refused with :class:`BatchLockedError`. A damaged result zip
@@ -977,11 +1022,12 @@ def run_batch(
         opts = replace(opts, overlays=kind)
     check_options(opts.compute)
     _check_overlays(opts.overlays)
-    if os.environ.get(WORKER_MEMORY_ENV):  # a bad size: one line, before any work, whatever
-        parse_memory(os.environ[WORKER_MEMORY_ENV])  # the number of workers
-    if scheduler or local_cluster:  # a missing package: one line, before any output
-        from .cluster import import_distributed
+    _check_environment(n_workers, bool(scheduler or local_cluster))
+    if scheduler or local_cluster:  # a bad address, a missing package: one line, before any output
+        from .cluster import check_scheduler, import_distributed
 
+        if scheduler:
+            check_scheduler(scheduler)
         import_distributed()
     out = Path(out_dir)
     try:
@@ -1034,9 +1080,15 @@ def _run_locked(
 
     from .progress import batch_progress
 
-    if callable(console):
-        console = console()
-    with batch_progress(console, progress) as bar:
+    with contextlib.ExitStack() as stack:
+        session = None
+        if todo and (scheduler or local_cluster):  # connected before the bar shows
+            session = stack.enter_context(
+                _dask_session(scheduler, local_cluster, n_workers, connect_timeout)
+            )
+        if callable(console):
+            console = console()
+        bar = stack.enter_context(batch_progress(console, progress))
         task = bar.add_task("brokenness", total=len(todo), last="")
         if len(rows):
             n = len(rows)
@@ -1062,22 +1114,14 @@ def _run_locked(
         try:
             if not todo:
                 pass
-            elif scheduler or local_cluster:
-                _run_dask(
-                    todo,
-                    out,
-                    opts,
-                    done,
-                    scheduler=scheduler,
-                    local_cluster=local_cluster,
-                    workers=n_workers,
-                    connect_timeout=connect_timeout,
-                )
+            elif session is not None:
+                _run_dask(todo, out, opts, done, session)
             elif n_workers == 1:
                 _run_inline(todo, out, opts, done)
             else:
                 _run_pool(todo, out, opts, done, min(n_workers, len(todo)))
         except KeyboardInterrupt:
+            stack.close()  # the Dask cluster's workers stopped first, as a pool's are
             finish()  # what is done is on disk; record it before leaving
             raise
     return finish()

@@ -116,11 +116,17 @@ def _terminated(signum: int, frame: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the batch and print where the results are."""
     from ..batch import read_manifest, run_batch
-    from ..batch.runner import STATUS_DONE, STATUS_ERROR, STATUS_NOT_MEASURED, STATUS_SKIPPED
+    from ..batch.runner import (
+        STATUS_DONE,
+        STATUS_ERROR,
+        STATUS_NOT_MEASURED,
+        STATUS_SKIPPED,
+        SUMMARY_NAMES,
+    )
     from ..limits import check_threshold
-    from ._outputs import check_output_folder
+    from ._outputs import Output, check_outputs
 
-    check_output_folder(args.out, "--out")
+    check_outputs([Output("--out", args.out, folder=True, writes=SUMMARY_NAMES)], (args.manifest,))
     if args.threshold is not None:
         check_threshold(args.threshold)
     manifest = read_manifest(args.manifest)  # ManifestError -> exit 2 before any work

@@ -73,16 +73,18 @@ def run(args: argparse.Namespace) -> int:
     from ..report.collect import collect_results
     from ..report.plots import write_plot
     from ..report.tables import group_table, rich_table, table_format, write_table
+    from ._outputs import Output, check_outputs, figure_suffixes
 
     if args.table:
         table_format(args.table)  # a bad suffix fails before any work
     check_dpi(args.dpi)
-    from ._outputs import check_output_file, figure_suffixes
-
-    if args.table:
-        check_output_file(args.table, "--table", (".csv", ".md", ".markdown"))
-    if args.plot:
-        check_output_file(args.plot, "--plot", figure_suffixes())
+    check_outputs(
+        [
+            Output("--table", args.table, (".csv", ".md", ".markdown")),
+            Output("--plot", args.plot, figure_suffixes() if args.plot else None),
+        ],
+        inputs=args.results,
+    )
     entries = collect_results(args.results)
     table = group_table(entries, args.group_by, pool=args.pool)
     failed = sum(e.failed for e in entries)

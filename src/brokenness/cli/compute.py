@@ -125,18 +125,26 @@ def add_parser(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
-def check_outputs(args: argparse.Namespace) -> None:
-    """Every file ``compute`` will write, checked before the maps are even loaded."""
-    from ._outputs import MAP_SUFFIXES, RESULT_SUFFIXES, check_output_file, figure_suffixes
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every file ``compute`` will write, checked before the maps are even loaded (none may
+    be one of the two maps, or the image a YAML map names)."""
+    from ._outputs import MAP_SUFFIXES, RESULT_SUFFIXES, Output, check_outputs, figure_suffixes
 
-    if args.json and args.json != "-":
-        check_output_file(args.json, "--json")
-    if args.overlay:
-        check_output_file(args.overlay, "--overlay", figure_suffixes())
-    if args.save_results:
-        check_output_file(args.save_results, "--save-results", RESULT_SUFFIXES)
-    if args.repaired:
-        check_output_file(args.repaired, "--repaired", MAP_SUFFIXES)
+    repaired = Path(args.repaired) if args.repaired else None
+    image = (  # save_map writes a YAML map's image next to it
+        (str(repaired.with_suffix(".pgm")),)
+        if repaired is not None and repaired.suffix.lower() in (".yaml", ".yml")
+        else ()
+    )
+    check_outputs(
+        [
+            Output("--json", args.json),
+            Output("--overlay", args.overlay, figure_suffixes() if args.overlay else None),
+            Output("--save-results", args.save_results, RESULT_SUFFIXES),
+            Output("--repaired", args.repaired, MAP_SUFFIXES, writes=image),
+        ],
+        inputs=(args.map, args.reference),
+    )
 
 
 def parse_labels(items: list[str]) -> dict[str, str]:
@@ -159,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     from ..measure import compute_brokenness
     from ._outputs import check_seed
 
-    check_outputs(args)
+    _check_outputs(args)
     check_seed(args.seed)
     check_threshold(args.threshold)  # the neighbourhood it implies, before any map is read
     labels = parse_labels(args.label)

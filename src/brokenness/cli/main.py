@@ -44,9 +44,36 @@ EXIT_NOT_MEASURED = 3
 EXIT_BROKEN_PIPE = 141
 
 
+#: Longest error message the command line prints (the rest is cut to an ellipsis): a value
+#: echoed from a hostile file or option cannot make the line long.
+MAX_ERROR_CHARS = 400
+
+
+def _error_line(prog: str, message: object) -> str:
+    """``"PROG: error: MESSAGE\\n"``, the message on one line of at most
+    :data:`MAX_ERROR_CHARS` characters.
+
+    Every character that is not printable (a newline, a carriage return, a tab, an escape
+    sequence's ESC, a Unicode line separator) is shown escaped, as in a Python string
+    (``\\n``), so that a path holding one still reads as that path and the message stays
+    on its line; a longer message is cut, the cut marked with ``...``.
+
+    Examples
+    --------
+    >>> _error_line("brokenness compute", "no such file: 'a\\nb.yaml'")
+    "brokenness compute: error: no such file: 'a\\\\nb.yaml'\\n"
+    """
+    text = "".join(
+        c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in str(message)
+    )
+    if len(text) > MAX_ERROR_CHARS:
+        text = text[: MAX_ERROR_CHARS - 3] + "..."
+    return f"{prog}: error: {text}\n"
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, exit 2 (argparse's default code)
-        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
+        self.exit(EXIT_BAD_INPUT, _error_line(self.prog, message))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
             "(+ PGM/PNG), PGM, PNG and other images, .npy arrays, ROS bags (--topic). Every "
             "subcommand takes -q/--quiet and -v/--verbose. Limits: BROKENNESS_MAX_CELLS (cells "
             "per map, default 100000000), BROKENNESS_WORKER_MEMORY (address space per batch "
-            "worker, e.g. 4G); see the README's Reliability section"
+            "worker process with --workers 2 or more, e.g. 4G); see the README's Reliability "
+            "section"
         ),
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -99,25 +127,25 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    prog = f"brokenness {args.command}"
     try:
         code = int(args.func(args))
         sys.stdout.flush()  # a closed pipe shows here, not at exit
         return code
     except BrokennessError as exc:
-        print(f"brokenness {args.command}: error: {exc}", file=sys.stderr)
+        sys.stderr.write(_error_line(prog, exc))
         return EXIT_BAD_INPUT
     except BrokenPipeError:  # an OSError: before the general case
         _silence_stdout()
         return EXIT_BROKEN_PIPE
     except OSError as exc:  # unwritable output path, disk full...
-        print(f"brokenness {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        sys.stderr.write(_error_line(prog, exc))
         return EXIT_BAD_INPUT
     except MemoryError:
-        print(
-            f"brokenness {args.command}: error: out of memory (the input is too large for "
-            "this machine; see BROKENNESS_MAX_CELLS)",
-            file=sys.stderr,
+        message = (
+            "out of memory (the input is too large for this machine; see BROKENNESS_MAX_CELLS)"
         )
+        sys.stderr.write(_error_line(prog, message))
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("brokenness: interrupted", file=sys.stderr)

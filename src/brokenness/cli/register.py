@@ -69,10 +69,9 @@ def add_parser(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Load both maps, register, and print (or write) the result."""
     from ..errors import ParameterError
-    from ._outputs import check_output_file, check_seed
+    from ._outputs import Output, check_outputs, check_seed
 
-    if args.json and args.json != "-":
-        check_output_file(args.json, "--json")
+    check_outputs([Output("--json", args.json)], inputs=(args.reference, args.moving))
     check_seed(args.seed)
     from ..registration.api import register
 

@@ -33,7 +33,9 @@ def add_parser(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     """Collect the results and write the page."""
     from ..report.html import write_html
+    from ._outputs import Output, check_outputs
 
+    check_outputs([Output("--html", args.html)], inputs=args.results)
     path = write_html(args.results, args.html, title=args.title)
     if not args.quiet:
         console().print(f"report: {path}")

@@ -116,9 +116,9 @@ def _check_sizes(args: argparse.Namespace) -> None:
 
     from ..errors import ParameterError
     from ..limits import check_cells, resolution_in_range
-    from ._outputs import check_output_folder
+    from ._outputs import Output, check_outputs
 
-    check_output_folder(args.out, "--out")
+    check_outputs([Output("--out", args.out, folder=True)])
     if args.count > MAX_COUNT:
         raise ParameterError(f"--count must be at most {MAX_COUNT}, got {args.count}")
     if not resolution_in_range(args.resolution):

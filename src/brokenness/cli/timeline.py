@@ -87,17 +87,18 @@ def run(args: argparse.Namespace) -> int:
     from ..timeline import timeline, write_timeline_csv, write_timeline_json
     from ..timeline.measure import DEFAULT_MIN_OCCUPIED
     from ._common import console as make_console
-    from ._outputs import check_output_file, check_output_folder, figure_suffixes
+    from ._outputs import Output, check_outputs, figure_suffixes
 
     # every output checked before any work, as compute does
-    if args.csv:
-        check_output_file(args.csv, "--csv", (".csv",))
-    if args.json and args.json != "-":
-        check_output_file(args.json, "--json")
-    if args.plot:
-        check_output_file(args.plot, "--plot", figure_suffixes())
-    if args.save_results:
-        check_output_folder(args.save_results, "--save-results")
+    check_outputs(
+        [
+            Output("--csv", args.csv, (".csv",)),
+            Output("--json", args.json),
+            Output("--plot", args.plot, figure_suffixes() if args.plot else None),
+            Output("--save-results", args.save_results, folder=True),
+        ],
+        inputs=(args.bag, args.reference),
+    )
     check_threshold(args.threshold)
     ref = load_map(args.reference)
     check_threshold(args.threshold, ref.shape)

@@ -89,31 +89,19 @@ def _labels(value: Any) -> dict[str, str]:
     return {str(k): str(v) for k, v in value.items() if v is not None and str(v) != ""}
 
 
-def _finite(value: Any) -> float:
-    number = float(value)
-    if not math.isfinite(number):
-        raise ValueError("not finite")
-    return number
-
-
 def _from_zip(path: Path) -> ResultEntry:
-    record = load_results(path)
+    record = load_results(path)  # every field read here checked there (types, the degree)
     stats = record.stats
-    parts = stats.get("partitions") or []
-    try:
-        fractions = tuple(_finite(p["fraction"]) for p in parts)
-        degree = record.degree
-    except (KeyError, TypeError, ValueError, OverflowError):
-        raise ResultFileError(f"{path}: stats.json has no valid degree and partitions") from None
+    degree = record.degree
     return ResultEntry(
         path=path,
         labels=_labels(record.info.get("labels")),
         degree=degree,
         measured=degree is not None,
-        partition_fractions=fractions,
+        partition_fractions=tuple(float(p["fraction"]) for p in stats.get("partitions") or []),
         psi_map=_float(stats.get("psi_map")),
         psi_repaired=_float(stats.get("psi_repaired")),
-        method=str(record.info["method"]) if record.info.get("method") else None,
+        method=record.info.get("method") or None,
         parameters=dict(record.info.get("parameters") or {}),
     )
 

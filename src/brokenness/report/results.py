@@ -33,6 +33,7 @@ import io
 import json
 import math
 import os
+import reprlib
 import zipfile
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -46,7 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import __version__
-from .._atomic import atomic_path
+from .._atomic import atomic_path, sync_file
 from .._atomic import atomic_write_bytes as atomic_write
 from ..errors import BrokennessError, ParameterError
 from ..grid import OccupancyMap
@@ -298,7 +299,7 @@ def _write_zip(
             for name, data in (last() if last is not None else {}).items():
                 zf.writestr(_member(name), data)
         fh.flush()
-        os.fsync(fh.fileno())
+        sync_file(fh)
 
 
 def _threads_allowed() -> bool:
@@ -508,12 +509,208 @@ def _degree_ok(value: Any) -> bool:
     return value is None or (isinstance(value, int) and not isinstance(value, bool) and value >= 0)
 
 
+# -- the fields of a result file, checked once where it is read --------------------------------
+@dataclass(frozen=True)
+class _Kind:
+    """What a field of ``info.json`` or ``stats.json`` may hold (``null`` always may be).
+
+    ``fields`` are an object's known fields (others are free: callers add their own),
+    ``required`` those of them that must be there and not ``null``, and ``each`` what every
+    item of a list (or every value of an object) must be.
+    """
+
+    what: str
+    test: Callable[[Any], bool]
+    fields: Mapping[str, _Kind] | None = None
+    required: tuple[str, ...] = ()
+    each: _Kind | None = None
+
+
+class _FieldError(Exception):
+    """A field of a result file is not what the format says (``name``: where it is)."""
+
+    def __init__(self, name: str, problem: str) -> None:
+        super().__init__(f"{name} {problem}")
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _object(
+    fields: Mapping[str, _Kind] | None = None,
+    required: tuple[str, ...] = (),
+    each: _Kind | None = None,
+) -> _Kind:
+    return _Kind("an object", lambda v: isinstance(v, dict), fields, required, each)
+
+
+def _list(each: _Kind) -> _Kind:
+    return _Kind("a list", lambda v: isinstance(v, list), each=each)
+
+
+_TEXT = _Kind("text", lambda v: isinstance(v, str))
+_NUMBER = _Kind("a number", _is_number)
+_SHARE = _Kind("a share in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1)
+_COUNT = _Kind(
+    "a whole number >= 0", lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0
+)
+_FLAG = _Kind("true or false", lambda v: isinstance(v, bool))
+_PAIR = _Kind(
+    "a pair of numbers", lambda v: isinstance(v, list) and len(v) == 2 and all(map(_is_number, v))
+)
+_LABEL = _Kind("text, a number or null", lambda v: v is None or isinstance(v, str | int | float))
+_TRANSFORM = _object(
+    {
+        "rotation_deg": _NUMBER,
+        "translation_cells": _PAIR,
+        "scale": _NUMBER,
+        "world": _object({"rotation_deg": _NUMBER, "translation_m": _PAIR}),
+        "translation_norm_cells": _NUMBER,
+        "translation_norm_m": _NUMBER,
+    }
+)
+_PARTITION = _object(
+    {
+        "index": _COUNT,
+        "cells": _COUNT,
+        "fraction": _SHARE,
+        "transform": _TRANSFORM,
+        "relative_to_largest": _TRANSFORM,
+        "confidence": _NUMBER,
+        "rotation_offset_deg": _NUMBER,
+        "displacement_cells": _NUMBER,
+        "displacement_m": _NUMBER,
+        "contradiction": _NUMBER,
+        "acceptance": _NUMBER,
+    },
+    required=("index", "cells", "fraction"),
+)
+_GEOMETRY = _object(
+    {
+        "rows": _COUNT,
+        "cols": _COUNT,
+        "resolution": _NUMBER,
+        "origin": _list(_NUMBER),
+        "occupied_cells": _COUNT,
+    }
+)
+#: The fields of ``info.json`` this package defines (and reads back).
+_INFO = _object(
+    {
+        "format_version": _COUNT,
+        "package": _TEXT,
+        "version": _TEXT,
+        "created": _TEXT,
+        "method": _TEXT,
+        "parameters": _object(),
+        "inputs": _object(),
+        "timings": _object(
+            {
+                "compute_seconds": _NUMBER,
+                "load_seconds": _NUMBER,
+                "total_seconds": _NUMBER,
+                "step_seconds": _list(_NUMBER),
+            }
+        ),
+        "labels": _object(each=_LABEL),
+        "overlay": _TEXT,
+        "timeline": _object(),
+    }
+)
+#: The fields of ``stats.json`` (:func:`build_stats`).
+_STATS = _object(
+    {
+        "measured": _FLAG,
+        "reason": _TEXT,
+        "contradiction": _NUMBER,
+        "contradiction_bound": _NUMBER,
+        "occupied_cells": _COUNT,
+        "unassigned_cells": _COUNT,
+        "unassigned_fraction": _SHARE,
+        "largest_fraction": _SHARE,
+        "n_partitions": _COUNT,
+        "partitions": _list(_PARTITION),
+        "method": _TEXT,
+        "parameters": _object(),
+        "map": _GEOMETRY,
+        "reference": _GEOMETRY,
+        "psi_map": _NUMBER,
+        "psi_repaired": _NUMBER,
+    }
+)
+
+
+def _json_kind(value: Any) -> str:
+    """How ``value`` shows in a message: its JSON type, and a short text of a scalar."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict | list):
+        return "an object" if isinstance(value, dict) else "a list"
+    kind = "text" if isinstance(value, str) else "a number"
+    return f"{kind} {reprlib.repr(value)}"
+
+
+def _validate(value: Any, kind: _Kind, name: str) -> None:
+    """Raise :class:`_FieldError` unless ``value`` (not ``null``) is of ``kind``, and so are
+    its known fields and items."""
+    if not kind.test(value):
+        raise _FieldError(name, f"must be {kind.what}, got {_json_kind(value)}")
+    for key in kind.required:
+        if value.get(key) is None:
+            raise _FieldError(_at(name, key), "is missing")
+    for key, sub in (kind.fields or {}).items():
+        if value.get(key) is not None:
+            _validate(value[key], sub, _at(name, key))
+    if kind.each is not None:
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        for index, item in items:
+            _validate(item, kind.each, _at(name, index))
+
+
+def _at(name: str, key: str | int) -> str:
+    """Where a field or item is: ``partitions[0].transform``."""
+    if isinstance(key, int):
+        return f"{name}[{key}]"
+    return f"{name}.{key}" if name else key
+
+
+def _check_fields(p: Path, info: dict[str, Any], stats: dict[str, Any]) -> None:
+    """Every field this package reads from a result file, of the type the format says, and
+    the degree consistent with the partitions: one check, where the file is read, so that
+    no reader meets a field of another type (a :class:`ResultFileError` naming the field)."""
+    for member, doc, kind in (("info.json", info, _INFO), ("stats.json", stats, _STATS)):
+        try:
+            _validate(doc, kind, "")
+        except _FieldError as exc:
+            raise ResultFileError(f"{p}: {member}: {exc}") from None
+    measured, degree = stats.get("measured", True), stats["degree"]
+    parts = len(stats.get("partitions") or [])
+    shown = "null" if degree is None else reprlib.repr(degree)
+    if measured is True and degree != parts - 1:
+        raise ResultFileError(
+            f"{p}: stats.json: a measured degree must be the partitions less one, got degree "
+            f"{shown} with {parts} partition{'' if parts == 1 else 's'}"
+        )
+    if measured is not True and degree is not None:
+        raise ResultFileError(
+            f"{p}: stats.json: degree {shown} but measured is {_json_kind(measured)}"
+        )
+
+
 def load_results(path: str | os.PathLike[str]) -> ResultRecord:
     """Read a result file written by :func:`save_results`.
 
     Every member's declared uncompressed size is checked before it is read (a zip bomb is
     refused, not inflated); JSON with ``NaN`` or ``Infinity`` is refused; every failure of the
-    zip, zlib, JSON and numpy readers becomes a one-line :class:`ResultFileError`.
+    zip, zlib, JSON and numpy readers becomes a one-line :class:`ResultFileError`. Every field
+    of ``info.json`` and ``stats.json`` that this package reads is checked here, once, to be
+    of the type the format says (``parameters`` an object, a partition's ``fraction`` a share
+    in [0, 1], ``timings`` an object of numbers...; fields a caller added are free), and a
+    measured degree to be the partitions less one: the readers (``compare``, ``report``,
+    a resumed batch or timeline) never meet a field of another type.
 
     Parameters
     ----------
@@ -526,8 +723,8 @@ def load_results(path: str | os.PathLike[str]) -> ResultRecord:
     Raises
     ------
     ResultFileError
-        If the file is missing, not a regular file, too large, not a zip, damaged, or not a
-        brokenness result file.
+        If the file is missing, not a regular file, too large, not a zip, damaged, not a
+        brokenness result file, or has a field of the wrong type (the message names it).
     """
     from ..io._files import check_regular, open_nonblocking
     from ..io.arrays import check_npy_header
@@ -576,15 +773,14 @@ def load_results(path: str | os.PathLike[str]) -> ResultRecord:
         raise ResultFileError(
             f"{p}: stats.json has an invalid degree {str(stats['degree'])[:40]!r}"
         )
-    if not isinstance(stats.get("partitions", []), list):
-        raise ResultFileError(f"{p}: stats.json has invalid partitions")
+    _check_fields(p, info, stats)
     if not isinstance(labels, np.ndarray) or labels.ndim != 2:
         raise ResultFileError(f"{p}: labels.npy is not a 2D array")
-    try:
-        labels16 = labels.astype(np.int16, copy=False)
-    except (TypeError, ValueError) as exc:
-        raise ResultFileError(f"{p}: labels.npy is not an integer array ({exc})") from None
-    return ResultRecord(info, stats, labels16, overlay, p)
+    if labels.dtype.kind not in "iu":
+        raise ResultFileError(f"{p}: labels.npy is not an integer array ({labels.dtype})")
+    if labels.size and not (-2 <= labels.min() and labels.max() <= np.iinfo(np.int16).max):
+        raise ResultFileError(f"{p}: labels.npy has labels outside [-2, 32767]")
+    return ResultRecord(info, stats, labels.astype(np.int16, copy=False), overlay, p)
 
 
 def _one_line(exc: BaseException) -> str:

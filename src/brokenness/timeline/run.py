@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..grid import OccupancyMap
-from ..limits import MAX_WORKERS
+from ..limits import MAX_WORKERS, max_cells
 from .events import find_events
 from .executors import make_executor
 from .frames import TimelineFrame, TimelineResult
@@ -150,7 +150,8 @@ def timeline(
         opened), no such topic, bad reference.
     ParameterError
         Bad options (``every``, ``period``: see :func:`brokenness.io.rosbag.thinning`),
-        missing Dask, unreachable scheduler.
+        a bad ``$BROKENNESS_MAX_CELLS``, missing Dask, a scheduler address that is none
+        or cannot be reached.
 
     Notes
     -----
@@ -178,6 +179,13 @@ def timeline(
         raise ParameterError(f"workers must be at most {MAX_WORKERS}, got {workers}")
     if isinstance(min_occupied_cells, bool) or int(min_occupied_cells) < 0:
         raise ParameterError(f"min_occupied_cells must be >= 0, got {min_occupied_cells!r}")
+    max_cells()  # $BROKENNESS_MAX_CELLS, read by every frame's checks: a bad value, once, now
+    if scheduler or local_cluster:  # a bad address, a missing package: before the bag is read
+        from ..batch.cluster import check_scheduler, import_distributed
+
+        if scheduler:
+            check_scheduler(scheduler)
+        import_distributed()
     compute = dict(options or {})
     ref = reference if isinstance(reference, OccupancyMap) else load_map(reference)
     bag_path = check_bag(bag)  # before any worker starts: no FIFO or device
