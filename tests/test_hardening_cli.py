@@ -332,3 +332,18 @@ def test_a_character_device_is_written_in_place(tmp_path):
     atomic_write_bytes(null, b"{}")
     assert stat.S_ISCHR(null.stat().st_mode)  # still the device, not a file in its place
     assert [p.name for p in tmp_path.iterdir()] == ["null"]  # no temporary file left
+
+
+def test_register_names_its_flag_when_candidates_are_out_of_range(capsys):
+    """--candidates over MAX_CANDIDATES (2048) is refused before any work, naming the flag."""
+    for n in (0, 5000):
+        line = refused(
+            capsys,
+            "register",
+            EXAMPLES / "building_31.yaml",
+            EXAMPLES / "building_31.yaml",
+            "--candidates",
+            n,
+            match="--candidates must be an integer in",
+        )
+        assert "max_candidates" not in line

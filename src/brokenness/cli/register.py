@@ -68,15 +68,14 @@ def add_parser(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load both maps, register, and print (or write) the result."""
-    from ..errors import ParameterError
+    from ..limits import check_candidates
     from ._outputs import Output, check_outputs, check_seed
 
     check_outputs([Output("--json", args.json)], inputs=(args.reference, args.moving))
     check_seed(args.seed)
     from ..registration.api import register
 
-    if args.candidates < 1:
-        raise ParameterError(f"--candidates must be at least 1, got {args.candidates}")
+    check_candidates(args.candidates, "--candidates")  # in [1, MAX_CANDIDATES]
     ref, moving = load_pair(args, "reference", "moving")
     # the API's search, whatever --candidates is (it only sets how many are reported)
     reg = register(ref, moving, method=args.method, seed=args.seed, max_candidates=args.candidates)
