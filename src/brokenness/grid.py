@@ -20,7 +20,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import MapError, MapSizeError
-from .limits import MAX_CELLS, MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
+from .limits import (
+    MAX_CELLS,
+    check_cells,
+    check_resolution,
+)
 
 __all__ = [
     "FREE",
@@ -89,20 +93,6 @@ def _grid(value: ArrayLike) -> NDArray[Any]:
     return arr
 
 
-def _resolution(value: object) -> float:
-    """A resolution as a float in the accepted range (:class:`MapError` otherwise)."""
-    try:
-        res = float(value)  # type: ignore[arg-type]  # anything: refused below if not a number
-    except (TypeError, ValueError):
-        res = math.nan
-    if not resolution_in_range(res):
-        raise MapError(
-            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
-            f"{MAX_RESOLUTION:g}], got {value!r}"
-        )
-    return res
-
-
 def _origin(value: object) -> tuple[float, float, float]:
     """An origin as three finite floats ``(x, y, yaw)`` (:class:`MapError` otherwise)."""
     try:
@@ -167,7 +157,7 @@ class OccupancyMap:
         states.setflags(write=False)
         object.__setattr__(self, "states", states)
         if self.resolution is not None:
-            object.__setattr__(self, "resolution", _resolution(self.resolution))
+            object.__setattr__(self, "resolution", check_resolution(self.resolution, MapError))
         if self.origin is not None:
             object.__setattr__(self, "origin", _origin(self.origin))
 

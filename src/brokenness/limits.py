@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+import reprlib
 from collections.abc import Mapping
 from numbers import Integral
 
@@ -166,6 +167,23 @@ def check_cells(rows: float, cols: float, what: str) -> None:
 def resolution_in_range(value: float) -> bool:
     """True when ``value`` is a resolution this package accepts (finite, in range)."""
     return math.isfinite(value) and MIN_RESOLUTION <= value <= MAX_RESOLUTION
+
+
+def check_resolution(value: object, error: type[ValueError] = ParameterError) -> float:
+    """A resolution (metres per cell) as a float in [:data:`MIN_RESOLUTION`,
+    :data:`MAX_RESOLUTION`]; ``error`` (a :class:`ParameterError` by default, a
+    :class:`MapError` for a map's own) for anything else, a value that is no number
+    included."""
+    try:
+        res = float(value)  # type: ignore[arg-type]  # anything: refused below if not a number
+    except (TypeError, ValueError, OverflowError):
+        res = math.nan
+    if not resolution_in_range(res):
+        raise error(
+            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
+            f"{MAX_RESOLUTION:g}], got {reprlib.repr(value)}"
+        )
+    return res
 
 
 def check_threshold(threshold: float, reference_shape: tuple[int, int] | None = None) -> float:

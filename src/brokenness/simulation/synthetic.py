@@ -16,7 +16,10 @@ from numbers import Real
 import numpy as np
 
 from ..errors import ParameterError
-from ..limits import MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
+from ..limits import (
+    check_cells,
+    check_resolution,
+)
 from .building import check_building_size, generate_building
 from .bumps import Bump
 from .ground_truth import NOT_OCCUPIED as NOT_OCCUPIED  # defined here before ground_truth
@@ -32,20 +35,6 @@ def _check_world(width: float, height: float, resolution: float, options: BumpOp
     check_building_size(width, height)
     check_cells(height / resolution, width / resolution, f"a {width:g} m x {height:g} m map")
     options.check_radius((0.0, 0.0, width, height))
-
-
-def _resolution(value: object) -> float:
-    """The resolution of the simulated maps, in the range a map's must be in."""
-    try:
-        resolution = float(value)  # type: ignore[arg-type]  # anything: refused if no number
-    except (TypeError, ValueError):
-        resolution = math.nan
-    if not resolution_in_range(resolution):
-        raise ParameterError(
-            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
-            f"{MAX_RESOLUTION:g}], got {value!r}"
-        )
-    return resolution
 
 
 def _sides(size: object) -> tuple[float, float]:
@@ -168,7 +157,7 @@ def simulate_broken_map(
         max_attempts=max_attempts,
         rule=HonestRule(threshold, merge_threshold, min_partition_fraction, min_partition_cells),
     )
-    resolution = _resolution(resolution)
+    resolution = check_resolution(resolution)
     width, height = _sides(size)
     _check_world(width, height, resolution, options)
     laser = Laser() if laser is None else laser
