@@ -172,3 +172,26 @@ def test_cli_overlay_options(tmp_path, capsys):
     with Image.open(out) as im:
         assert im.size[0] > small[0]
     assert main([*args, "--dpi", "0"]) == 2
+
+
+def test_an_overlay_replaces_its_file_only_once_written_whole(tmp_path, monkeypatch):
+    """The PNG is written to a temporary file beside the target, which replaces it at the
+    end: a failure half-way leaves the earlier picture as it was, and no temporary file."""
+    from matplotlib.figure import Figure
+
+    m, result = grid_case(120, 2)
+    out = tmp_path / "overlay.png"
+    render_overlay(result, m, m, out, dpi=50)
+    before = out.read_bytes()
+    assert before.startswith(b"\x89PNG")
+
+    def broken(self, fname, **kwargs):  # noqa: ANN001, ANN003 - matplotlib's signature
+        with open(fname, "wb") as fh:
+            fh.write(b"half a picture")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Figure, "savefig", broken)
+    with pytest.raises(OSError):
+        render_overlay(result, m, m, out, dpi=50)
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["overlay.png"]

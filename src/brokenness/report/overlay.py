@@ -29,6 +29,7 @@ fraction of the time); this module is the publication figure.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
@@ -37,6 +38,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from .._atomic import atomic_path
 from ..errors import MapError, ParameterError
 from ..grid import OccupancyMap
 from ..measure.result import BrokennessResult
@@ -216,7 +218,8 @@ def render_overlay(
     ParameterError
         For an unknown ``mode``.
     OSError
-        If the file cannot be written.
+        If the file cannot be written (the file is replaced only once the picture is
+        written whole).
 
     Examples
     --------
@@ -228,7 +231,11 @@ def render_overlay(
     # "tight" on top of the constrained layout: the saved picture holds every artist (the
     # layout alone can miss a few pixels of the title when the image's aspect is fixed)
     if isinstance(path, (str, os.PathLike)):
-        fig.savefig(os.fspath(path), dpi=dpi, bbox_inches="tight", pad_inches=0.08)
+        # atomic: a temporary file beside it replaces it once written (its format named,
+        # as the temporary name has no suffix to tell it; a path without one gets a PNG)
+        kind = Path(path).suffix.lower().lstrip(".") or "png"
+        with atomic_path(path) as tmp:
+            fig.savefig(os.fspath(tmp), dpi=dpi, format=kind, bbox_inches="tight", pad_inches=0.08)
     else:
         fig.savefig(
             path,
