@@ -374,3 +374,23 @@ def test_a_folder_that_cannot_be_entered_for_real(tmp_path):
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
     assert run.stdout.startswith("MapError ") and "permission denied" in run.stdout
     assert run.stdout.count("\n") == 1
+
+
+# -- the library's writers and the timeline's options: typed errors (review item 17) -----------
+def test_writers_and_timeline_options_raise_typed_errors(tmp_path):
+    """save_map without a path, save_simulation into a path that is a file, and a timeline's
+    min_occupied_cells that is no integer: a BrokennessError each (a TypeError, a
+    FileExistsError and a ValueError before), raised before any work."""
+    from brokenness.simulation import save_simulation, simulate_broken_map
+
+    m = brokenness.OccupancyMap.from_array(np.eye(8, dtype=bool), resolution=0.05)
+    with pytest.raises(brokenness.ParameterError, match="save_map's path"):
+        brokenness.save_map(m, None)  # type: ignore[arg-type]
+    a_file = tmp_path / "taken"
+    a_file.write_text("x")
+    sim = simulate_broken_map(seed=1)
+    with pytest.raises(MapError, match="cannot make the folder"):
+        save_simulation(sim, a_file, "run")
+    for bad in ("x", 2.5):
+        with pytest.raises(brokenness.ParameterError, match="min_occupied_cells must be an int"):
+            brokenness.timeline(tmp_path / "none.bag", m, min_occupied_cells=bad)

@@ -13,7 +13,7 @@ from PIL import Image
 
 from ..errors import MapError, ParameterError
 from ..grid import FREE, OCCUPIED, OccupancyMap
-from ._files import MapWarning, atomic_write_bytes
+from ._files import MapWarning, as_path, atomic_write_bytes
 from .arrays import encode_npy
 from .pnm import encode_pgm
 from .ros_yaml import dump_map_yaml
@@ -102,7 +102,7 @@ def save_map(map: OccupancyMap, path: str | os.PathLike[str], *, image_format: s
         raise ParameterError(f"image_format must be 'pgm' or 'png', got {image_format!r}")
     if not isinstance(map, OccupancyMap):
         raise MapError(f"save_map needs an OccupancyMap, got {type(map).__name__}")
-    p = Path(os.fspath(path))
+    p = as_path(path, "save_map's path")
     suffix = p.suffix.lower()
     if suffix in (".yaml", ".yml"):
         resolution, origin = map.resolution, map.origin

@@ -18,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_write_bytes
-from ..errors import ParameterError
+from ..errors import MapError, ParameterError
 from ..io import save_map
+from ..io._files import as_path
 from .ground_truth import SimulatedMap
 
 __all__ = ["save_simulation"]
@@ -48,12 +49,17 @@ def save_simulation(
     Raises
     ------
     ParameterError
-        For an empty name or one with other characters.
+        For an empty name or one with other characters, or an ``out_dir`` that is no path.
+    MapError
+        If the folder cannot be made (a file of that name, no permission).
     """
     if not name or not set(name) <= _NAME_OK or name.startswith("."):
         raise ParameterError(f"name must be letters, digits, '.', '_', '-', got {name!r}")
-    out = Path(os.fspath(out_dir))
-    out.mkdir(parents=True, exist_ok=True)
+    out = as_path(out_dir, "out_dir")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file where the folder should be, no permission...
+        raise MapError(f"{out}: cannot make the folder ({exc.strerror or exc})") from None
     paths = {
         "map": out / f"{name}.yaml",
         "reference": out / f"{name}_reference.yaml",

@@ -14,6 +14,7 @@ import os
 import time
 from collections.abc import Mapping
 from dataclasses import replace
+from numbers import Integral
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -177,7 +178,9 @@ def timeline(
         raise ParameterError(f"workers must be a positive integer, got {workers!r}")
     if workers > MAX_WORKERS:
         raise ParameterError(f"workers must be at most {MAX_WORKERS}, got {workers}")
-    if isinstance(min_occupied_cells, bool) or int(min_occupied_cells) < 0:
+    if not isinstance(min_occupied_cells, Integral) or isinstance(min_occupied_cells, bool):
+        raise ParameterError(f"min_occupied_cells must be an integer, got {min_occupied_cells!r}")
+    if min_occupied_cells < 0:
         raise ParameterError(f"min_occupied_cells must be >= 0, got {min_occupied_cells!r}")
     max_cells()  # $BROKENNESS_MAX_CELLS, read by every frame's checks: a bad value, once, now
     if scheduler or local_cluster:  # a bad address, a missing package: before the bag is read
