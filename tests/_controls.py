@@ -60,6 +60,11 @@ same thing:
   held at twins and a third (10 %) was split in two, one piece at a twin: degree 9, three
   partitions wrong. Two doubtful partitions that touch in the map, registered together,
   give the part's transform (session 29). Drawn from its accepted attempt (41) on.
+- :func:`split_piece_drawn_maps`: the open-plan office drawn by
+  ``benchmarks/drawn_buildings.py`` broken into 9 partitions, at 0.1 m against its run at
+  5 cm (case ``plan-office_d8_s0``), which came out degree 10: a part split in two pieces at
+  twins, only one of them doubtful. A doubtful partition registered together with the
+  partition it touches gives the part's place (session 29). Drawn from attempt 69 on.
 
 Each fixture but two takes well under 5 s to build (the Orebro log is read once per process).
 """
@@ -262,3 +267,10 @@ def split_piece_simulated_maps() -> list[BrokenCase]:
     module docstring)."""
     case = Case("sim", 8, 43, 0.05, 0.05, "plan")
     return [_drawn("simulated degree 8 (seed 43, 5 cm, plan)", case, attempt=41)]
+
+
+def split_piece_drawn_maps() -> list[BrokenCase]:
+    """The drawn office at 0.1 m, degree 8, in its own frame, against its run at 5 cm (see
+    the module docstring)."""
+    case = Case("plan-office", 8, 0, 0.1, 0.05, "run")
+    return [_drawn("drawn office degree 8 (seed 0, 0.1 m, run at 5 cm)", case, attempt=69)]

@@ -80,10 +80,10 @@ and refitted on the partition's cells (:func:`~brokenness.measure.refine.refit_t
 the settle step's refit of its own candidates): a hypothesis of a few cells' residual error
 makes fewer cells agree than the twin it should replace, and the settle step judges a
 rival as it is given. Of the partitions settled, those whose free space does not show that
-they are in place are registered alone again, with their neighbourhood, and two of them
-that touch in the map are registered together: the recursion can split a small part into
-two pieces, each at a twin, and only their union carries enough of the part to give its
-place. After the settle step, the recovery runs
+they are in place are registered alone again, with their neighbourhood, and each of them
+together with every partition that touches it in the map: the recursion can split a small
+part into two pieces, each at a twin, and only their union carries enough of the part to
+give its place. After the settle step, the recovery runs
 again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``), if the tests
 after it changed the partitions: settled transforms leave clearer suspects.
 
@@ -594,8 +594,8 @@ def relocation_rivals(
     of every partition that ``which`` leaves out, with no registration, at the opposite of
     its own rotation (the twin of a stretch of corridor or of a symmetric room is most often
     half a turn away, and a partition whose free space passes on its own may still stand at
-    one). Two searched partitions whose cells touch may be two pieces of one part, each at a
-    twin: their union is registered too (:func:`_piece_rivals`). Each rival is given
+    one). A searched partition and one whose cells touch its own may be two pieces of one part,
+    each at a twin: their union is registered too (:func:`_piece_rivals`). Each rival is given
     as found and refitted on the partition's cells
     (:func:`~brokenness.measure.refine.refit_transform`).
     :func:`~brokenness.measure.settle.settle` then judges every rival by the usual count, and
@@ -614,8 +614,9 @@ def _relocations(
     place_every: bool = True,
 ) -> list[RigidTransform]:
     """:func:`relocation_rivals` with its search made, with the neighbourhood of ``radius``
-    cells of each partition too, and the union of every two searched partitions that touch
-    within it (``None``: each partition's own cells alone), and, given the map's free
+    cells of each partition too, and the union of every searched partition with each
+    partition that touches it within that radius (``None``: each partition's own cells
+    alone), and, given the map's free
     space ``free`` (:func:`~brokenness.measure.evidence.free_space` of ``found``), the
     placement of each partition's cells that explains them about as well and whose free
     space crosses the reference's walls least
@@ -677,10 +678,11 @@ def _as_found_and_refitted(
 def _piece_rivals(
     search: _Search, found: list[Found], searched: Sequence[int], radius: int
 ) -> list[RigidTransform]:
-    """Rivals from two pieces of one part: of every two partitions ``searched`` whose cells
-    touch in the map (one within ``radius`` cells of the other's), their union registered
-    alone, its best hypothesis that puts the cells elsewhere than every partition does,
-    as found and refitted on each of the two.
+    """Rivals from two pieces of one part: of every partition ``searched`` and each other
+    partition whose cells touch its own (one within ``radius`` cells of the other's), their
+    union registered alone, its best hypothesis that puts the cells elsewhere than every
+    partition does, as found and refitted on each of the two (the pairs of two searched
+    partitions first, then those of a searched partition and one that is not).
 
     The greedy recursion can split a small part in two, each piece at a twin of its own
     stretch of the building, where the two fit their own cells; neither piece's cells, nor
@@ -688,23 +690,30 @@ def _piece_rivals(
     part is one contiguous stretch of the run, so its pieces touch in the map, and their
     union gives the part's transform: offered to each, it explains the part's cells at one
     place, and the settle step judges it as every rival (the other piece, its cells then
-    explained, is dropped as redundant).
+    explained, is dropped as redundant). One of the two pieces may pass the free-space
+    test on its own (the free space near a small piece is mostly other partitions'), so a
+    searched partition is paired with every partition it touches.
     """
     out: list[RigidTransform] = []
-    for a, i in enumerate(searched):
-        near = np.zeros(search.points.shape[0], dtype=bool)
-        near[_neighbourhood(found[i].members, search, radius)] = True
-        for j in searched[a + 1 :]:
-            if exhausted(search.registrar):
-                return out
-            if not near[found[j].members].any():
-                continue
-            union = np.concatenate([found[i].members, found[j].members])
-            union_place = search.elsewhere(found, union)
-            for k in (i, j):
-                out += _as_found_and_refitted(
-                    [union_place], take_rows(search.points, found[k].members), search
-                )
+    chosen = set(searched)
+    others = [j for j in range(len(found)) if j not in chosen]
+    pairs = [(i, j) for a, i in enumerate(searched) for j in searched[a + 1 :]]
+    pairs += [(i, j) for i in searched for j in others]
+    near: dict[int, NDArray[np.bool_]] = {}
+    for i, j in pairs:
+        if exhausted(search.registrar):
+            return out
+        if i not in near:
+            near[i] = np.zeros(search.points.shape[0], dtype=bool)
+            near[i][_neighbourhood(found[i].members, search, radius)] = True
+        if not near[i][found[j].members].any():
+            continue
+        union = np.concatenate([found[i].members, found[j].members])
+        union_place = search.elsewhere(found, union)
+        for k in (i, j):
+            out += _as_found_and_refitted(
+                [union_place], take_rows(search.points, found[k].members), search
+            )
     return out
 
 
