@@ -19,7 +19,6 @@ maps a point of the map's world frame to the reference's world frame.
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from typing import cast
 
@@ -31,9 +30,6 @@ from .errors import ParameterError
 from .grid import OccupancyMap
 
 __all__ = ["RigidTransform", "wrap_angle"]
-
-#: The largest finite float: a value within +-it is finite (one comparison, NaN fails it).
-_LARGEST = sys.float_info.max
 
 
 def wrap_angle(angle: float) -> float:
@@ -80,13 +76,8 @@ class RigidTransform:
             scale = float(self.scale)
         except (TypeError, ValueError):
             raise self._refused() from None
-        # four comparisons (a NaN fails each): cheap on a type made thousands of times a call
-        if not (
-            -_LARGEST <= rotation <= _LARGEST
-            and -_LARGEST <= tx <= _LARGEST
-            and -_LARGEST <= ty <= _LARGEST
-            and 0.0 < scale <= _LARGEST
-        ):
+        finite = math.isfinite
+        if not (finite(rotation) and finite(tx) and finite(ty) and finite(scale) and scale > 0):
             raise self._refused()
         object.__setattr__(self, "rotation", wrap_angle(rotation))
         object.__setattr__(self, "tx", tx)

@@ -44,9 +44,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from ..errors import MapError, ParameterError
+from ..errors import MapError
 from ..grid import FREE, OCCUPIED, UNKNOWN, OccupancyMap
-from ..limits import MAX_RESOLUTION, MIN_RESOLUTION, check_cells, resolution_in_range
+from ..limits import check_cells, check_resolution
 
 __all__ = ["cell_scale_offset", "common_resolution", "resample_to_resolution", "resampled_size"]
 
@@ -139,15 +139,7 @@ def resample_to_resolution(m: OccupancyMap, resolution: float) -> OccupancyMap:
     """
     if not isinstance(m, OccupancyMap):
         raise MapError(f"only an OccupancyMap can be resampled, got {type(m).__name__}")
-    try:
-        new_res = float(resolution)
-    except (TypeError, ValueError):
-        raise ParameterError(f"resolution must be a number, got {resolution!r}") from None
-    if not resolution_in_range(new_res):
-        raise ParameterError(
-            f"resolution must be a number of metres per cell in [{MIN_RESOLUTION:g}, "
-            f"{MAX_RESOLUTION:g}], got {resolution!r}"
-        )
+    new_res = check_resolution(resolution)  # a ParameterError out of range
     if m.resolution is None:
         raise MapError(f"{m.source or 'map'}: has no resolution, so it cannot be resampled")
     if new_res == m.resolution:
