@@ -236,6 +236,30 @@ def test_suspect_regions_group_near_suspects_and_take_every_cell_around():
     assert recovery.suspect_regions(points, suspect, min_cells=800) == []
 
 
+def test_regions_around_few_suspects_hold_every_cell_around_them():
+    """The last search places the region around each group of dense suspects, however few
+    (a small part's cells mostly taken by other partitions): a region must hold at least
+    ``min_cells`` cells, suspects or not, and groups far apart are regions of their own."""
+    reach = recovery.REGION_REACH
+    rng = np.random.default_rng(5)
+
+    def square(x0: int, y0: int, side: int, n: int) -> np.ndarray:
+        return np.column_stack([rng.integers(x0, x0 + side, n), rng.integers(y0, y0 + side, n)])
+
+    few = square(0, 0, 20, 30)  # 30 suspects ...
+    around = square(0, 20, reach // 2, 300)  # ... with 300 cells within reach of them
+    lone = square(20 * reach, 0, 20, 40)  # 40 suspects with nothing around them
+    points = np.vstack([few, around, lone]).astype(np.float64) + 7.0
+    cells = np.zeros(points.shape[0], bool)
+    cells[:30] = True
+    cells[330:] = True
+    regions = recovery._regions_around(points, cells, min_cells=100)
+    assert len(regions) == 1  # the lone group's region holds 40 cells only
+    assert regions[0][:330].all() and not regions[0][330:].any()
+    assert len(recovery._regions_around(points, cells, min_cells=30)) == 2
+    assert recovery._regions_around(points, np.zeros_like(cells), min_cells=1) == []
+
+
 def test_groups_leave_out_what_was_registered_already():
     """A group that holds nearly every suspect was registered as the suspects, and a region
     that holds nearly the whole map was registered by the recursion: neither again."""

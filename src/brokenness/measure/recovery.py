@@ -39,7 +39,14 @@ the recursion:
    (:mod:`~brokenness.measure.placement`). The registration takes its rotation from the
    whole spectrum of what it registers, and a few cells of a small part mixed with the
    borders of parts turned by other bumps have the wrong strongest directions; their walls,
-   counted one by one, still point the part's way;
+   counted one by one, still point the part's way. Last, the region around each group of
+   them is placed with all its cells (:func:`_regions_around`): a small part that the
+   partitions found before it took most of can leave fewer suspects than a partition holds
+   (sim d7 s25 of the realistic benchmark: 147 of its 626 cells), too few to count a
+   placement on, while the region around them holds its taken cells too, and at the part's
+   rotation its place explains them. Most of a region's cells are other partitions', so what
+   a placement explains of them is no evidence of its own: its best placement goes straight
+   to step 5's count of the cells it would take;
 4. counts it as a new partition if the suspects it explains *coherently* (they agree under
    it, and so do at least :data:`SUPPORT_SHARE` of the cells around them: coincidences are
    scattered) pass the recursion's stopping rule on the suspects (``k >= n p0 + z sigma``
@@ -49,11 +56,12 @@ the recursion:
    leaves another partition too few cells of its own, that one is dropped, and the new one
    is kept only if the partitions then explain more cells: a part found at its place
    replaces its twin, :func:`_kept`);
-5. if no hypothesis passes step 4's count, counts the best hypotheses of step 3 again over
-   the whole map (:meth:`_Search.taken_partition`): the cells a new partition of the
-   hypothesis would *take* (:func:`taken_cells`: they agree coherently under it, and belong
-   to no partition or have more cells of their neighbourhood agreeing under it than under
-   their partition's transform) must pass the stopping rule over all the map's cells, with
+5. if no hypothesis passes step 4's count (or, for the regions placed last, is counted
+   on it), counts the best hypotheses of step 3 again over the whole map
+   (:meth:`_Search.taken_partition`): the cells a new partition of the hypothesis would
+   *take* (:func:`taken_cells`: they agree coherently under it, and belong to no partition
+   or have more cells of their neighbourhood agreeing under it than under their
+   partition's transform) must pass the stopping rule over all the map's cells, with
    chance what the rival hypotheses would take (upper quartile), and the same tests of
    merging and of keeping enough cells. A part shifted along a corridor against a partition
    found before it shares its walls along the shift with that partition, so few of its
@@ -99,7 +107,7 @@ import math
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -324,6 +332,18 @@ def suspect_regions(
     """
     if np.count_nonzero(suspect) < min_cells:
         return []
+    region, held, _ = _regions(points, suspect)
+    return [region == g for g in range(1, held.size) if held[g] >= min_cells]
+
+
+def _regions(
+    points: NDArray[np.float64], cells: NDArray[np.bool_]
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """The regions around ``cells`` (a mask over ``points``, at least one set): per point,
+    its region (0 for none; the blocks of :data:`BLOCK` cells that hold one of ``cells``,
+    grown by :data:`REGION_REACH` cells, 8-connected), numbered in order of decreasing
+    ``cells`` held (then of the first block, row-major); and per region, the ``cells`` it
+    holds and all the points it holds (index 0: outside every region, none held)."""
     reach = -(-REGION_REACH // BLOCK)
     cols = points[:, 0].astype(np.intp) // BLOCK
     rows = points[:, 1].astype(np.intp) // BLOCK
@@ -331,14 +351,28 @@ def suspect_regions(
     rows, cols = rows - r0, cols - c0
     shape = (int(rows.max()) + reach + 1, int(cols.max()) + reach + 1)
     held = np.zeros(shape, np.uint8)
-    held[rows[suspect], cols[suspect]] = 1
+    held[rows[cells], cols[cells]] = 1
     grown = cv2.dilate(held, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8))
     count, piece = cv2.connectedComponents(grown, connectivity=8)
     of_cell = piece[rows, cols]
-    suspects = np.bincount(of_cell[suspect], minlength=count)
-    suspects[0] = 0  # outside every region
-    order = sorted(range(1, count), key=lambda g: (-suspects[g], g))
-    return [of_cell == g for g in order if suspects[g] >= min_cells]
+    inside = np.bincount(of_cell[cells], minlength=count)
+    inside[0] = 0  # outside every region
+    order = np.array([0, *sorted(range(1, count), key=lambda g: (-inside[g], g))], np.intp)
+    renumber = np.empty(count, np.intp)
+    renumber[order] = np.arange(count)
+    region = renumber[of_cell]
+    size = np.bincount(region, minlength=count)
+    size[0] = 0
+    return region, inside[order], size
+
+
+class _SearchStep(NamedTuple):
+    """One search for a lost partition (step 3 of the module docstring)."""
+
+    cells: NDArray[np.bool_]  # the cells its hypotheses are counted on (a mask)
+    sources: list[NDArray[np.bool_]]  # the cells registered (none: ``cells``)
+    placed: bool  # placed at the rotations of their walls instead of registered
+    counted: bool = True  # counted on ``cells``; if not, only over the whole map (step 5)
 
 
 def _searches(
@@ -346,22 +380,38 @@ def _searches(
     dense: NDArray[np.bool_],
     suspect: NDArray[np.bool_],
     min_cells: int,
-) -> Iterator[tuple[NDArray[np.bool_], list[NDArray[np.bool_]], bool]]:
-    """The searches for a lost partition, in turn (step 3 of the module docstring): the
-    cells it is counted on, the cells registered for its hypotheses (none: those cells
-    themselves) and whether they are placed instead of registered
-    (:meth:`_Search.placed`). First the regions of suspects (``dense``: a lost partition is
-    a region of them; the borders of the partitions found are lines of them), then every
-    suspect unless the regions hold :data:`_SAME_SET` of them, then the groups of suspects
-    and the regions around them (:func:`_groups`, made only if the searches before found
-    nothing), then the regions of suspects placed at the rotations of their walls."""
-    yield dense, [], False
+) -> Iterator[_SearchStep]:
+    """The searches for a lost partition, in turn (step 3 of the module docstring). First the
+    regions of suspects (``dense``: a lost partition is a region of them; the borders of the
+    partitions found are lines of them), then every suspect unless the regions hold
+    :data:`_SAME_SET` of them, then the groups of suspects and the regions around them
+    (:func:`_groups`, made only if the searches before found nothing), then the regions of
+    suspects placed at the rotations of their walls, and last the region around each group
+    of them placed with all its cells, its best placement counted only by the cells it would
+    take over the whole map (step 5; a region's cells are mostly other partitions', and what
+    a placement explains of those is no evidence of its own)."""
+    yield _SearchStep(dense, [], placed=False)
     if np.count_nonzero(dense) < _SAME_SET * np.count_nonzero(suspect):
-        yield suspect, [], False
+        yield _SearchStep(suspect, [], placed=False)
     groups = _groups(points, suspect, min_cells)
     if groups:
-        yield suspect, groups, False
-    yield dense, [], True
+        yield _SearchStep(suspect, groups, placed=False)
+    yield _SearchStep(dense, [], placed=True)
+    for region in _regions_around(points, dense, min_cells):
+        if np.count_nonzero(region) < _SAME_SET * points.shape[0]:  # else: registered whole
+            yield _SearchStep(region, [], placed=True, counted=False)
+
+
+def _regions_around(
+    points: NDArray[np.float64], cells: NDArray[np.bool_], min_cells: int
+) -> list[NDArray[np.bool_]]:
+    """The regions around groups of ``cells`` (:func:`_regions`) that hold at least
+    ``min_cells`` occupied cells, however few of ``cells``, in order of decreasing
+    ``cells`` held."""
+    if not cells.any():
+        return []
+    region, held, size = _regions(points, cells)
+    return [region == g for g in range(1, held.size) if held[g] > 0 and size[g] >= min_cells]
 
 
 def _groups(
@@ -511,13 +561,13 @@ def recover(
         )
         new = None
         short: list[_Shortfall] = []
-        for cells, sources, placed in _searches(points, dense, suspect, min_cells):
-            new, shortfall = search.lost_partition(found, cells, sources, placed)
+        for step in _searches(points, dense, suspect, min_cells):
+            new, shortfall = search.lost_partition(found, step)
             if shortfall is not None:
                 short.append(shortfall)
             if new is not None:
                 break
-        rivals += [shortfall.transform for shortfall in short]
+        rivals += [shortfall.transform for shortfall in short if shortfall.rival]
         grown, before = None, None
         for shortfall in short if new is None else ():  # counted over the whole map instead
             taken = search.taken_partition(found, shortfall)
@@ -757,6 +807,7 @@ class _Shortfall:
 
     transform: RigidTransform
     candidates: tuple[Candidate, ...]
+    rival: bool = True  # offered to the settle step as a rival (not a placement's)
 
 
 @dataclass(frozen=True)
@@ -788,20 +839,19 @@ class _Search:
         return self.context.settings
 
     def lost_partition(
-        self,
-        found: list[Found],
-        cells: NDArray[np.bool_],
-        sources: Sequence[NDArray[np.bool_]] = (),
-        placed: bool = False,
+        self, found: list[Found], step: _SearchStep
     ) -> tuple[Found | None, _Shortfall | None]:
-        """The partition that ``cells`` hide, if its hypothesis passes every test; else
-        ``None`` and, if the hypothesis failed only the count (too few of ``cells`` agree
-        coherently for a new partition), the hypothesis and its rivals.
+        """The partition that the cells of ``step`` hide, if its hypothesis passes every
+        test; else ``None`` and, if the hypothesis failed only the count (too few of the
+        cells agree coherently for a new partition), the hypothesis and its rivals (a rival
+        for the settle step too, unless the step is placed).
 
-        The hypotheses are those of ``cells`` registered alone or, if ``sources`` are given
-        (masks over the map's cells), those of each source registered alone, or, if
-        ``placed``, the placements of ``cells`` (:meth:`placed`); they are counted on
-        ``cells`` either way."""
+        The hypotheses are those of the cells registered alone or, if the step has
+        ``sources`` (masks over the map's cells), those of each source registered alone, or,
+        if it is ``placed``, the placements of its cells (:meth:`placed`); they are counted
+        on its cells either way. A step that is not ``counted`` returns its best hypothesis
+        as a shortfall at once: it is counted over the whole map (:meth:`taken_partition`)."""
+        cells, sources, placed = step.cells, step.sources, step.placed
         settings = self.settings
         n = int(np.count_nonzero(cells))
         if n < settings.min_cells or exhausted(self.registrar):
@@ -836,6 +886,8 @@ class _Search:
         if best is None:
             return None, None
         transform = best[0]
+        if not step.counted:
+            return None, _Shortfall(transform, tuple(candidates), rival=False)
         agree = self._coherent(transform, cells)
         k = int(np.count_nonzero(agree))
         # chance: what the other candidates make of the suspects (rival_chance)
