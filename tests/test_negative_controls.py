@@ -15,6 +15,7 @@ from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_ma
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
 from brokenness.measure.evidence import MAP_RATIO, ClearFree, contradiction
+from brokenness.measure.explained import MAP_SHARE
 from brokenness.measure.partitions import Found
 
 DATA = Path(__file__).parent / "data"
@@ -58,11 +59,16 @@ def test_a_map_of_another_building_gets_no_degree(map_name, reference_name):
     """Before the contradiction test these got degrees 10, 2, 11, 1 and 3."""
     result = _not_measured(_load(map_name), _load(reference_name))
     assert not result.measured and result.degree is None, result.partitions
-    assert result.contradiction is not None and result.contradiction > MAP_RATIO
-    # the decision rests on the upper bound, which is above the ratio and above the limit
-    assert result.contradiction_bound is not None
+    assert result.contradiction is not None and result.contradiction_bound is not None
     assert result.contradiction_bound > result.contradiction
     assert result.to_dict()["contradiction_bound"] == result.contradiction_bound
+    # the decision rests on the share of the map its partitions hold, or on the upper bound
+    # of the free space's ratio, above the limit
+    assert result.reason is not None
+    by_share = result.reason.startswith("only")
+    assert by_share or result.contradiction_bound > MAP_RATIO
+    if by_share:
+        assert 1.0 - result.unassigned_fraction < MAP_SHARE
 
 
 def test_random_walls_get_no_degree():

@@ -37,15 +37,27 @@ def test_broken_map_keeps_the_parts_its_reference_sees(building):
     assert result.measured and result.degree == 2
 
 
+def test_map_past_its_reference_keeps_what_lies_beyond_unassigned(building):
+    # the unbroken map of the whole building against a reference of its left 70 %: the
+    # cells beyond the reference fit elsewhere on it only by chance, each such placement
+    # explaining a part of its region only (0.63 of it here, session 30), so none is a
+    # partition (measure/explained.py) and those cells stay unassigned (before: degree 2)
+    reference = _crop(building, slice(None), slice(0, round(0.7 * building.shape[1])))
+    result = compute_brokenness(building, reference)
+    assert result.measured and result.degree == 0
+    beyond = building.occupied[:, round(0.7 * building.shape[1]) + 5 :]
+    assert result.unassigned_cells >= 0.8 * np.count_nonzero(beyond)
+
+
 @pytest.mark.xfail(
     strict=True,
-    reason="known limitation (issue 16, README 'Maps past their reference'): the map's cells "
-    "beyond the reference are registered elsewhere on it as partitions",
+    reason="known limitation (issue 16, README 'Maps past their reference'): the building's "
+    "rooms repeat, and its cells beyond the reference fit other rooms of it, each placement "
+    "explaining nearly all of its region, as a true part does",
 )
-@pytest.mark.parametrize("keep", [0.7, 0.8])
-def test_map_past_its_reference_is_not_broken(building, keep):
-    # the unbroken map of the whole building against a reference of its left part: today
-    # degree 2 (0.7) and 3 (0.8), measured; a fix makes this pass (and the mark must go)
-    reference = _crop(building, slice(None), slice(0, round(keep * building.shape[1])))
+def test_map_past_its_reference_of_repeated_rooms_is_not_broken(building):
+    # against a reference of its left 80 %: today degree 3, measured, three placements that
+    # explain 86-95 % of their regions; a fix makes this pass (and the mark must go)
+    reference = _crop(building, slice(None), slice(0, round(0.8 * building.shape[1])))
     result = compute_brokenness(building, reference)
     assert not result.measured or result.degree == 0

@@ -140,6 +140,7 @@ from .evidence import (
     free_space,
     wall_contradiction,
 )
+from .explained import MAP_SHARE, drop_unexplained, explained_share
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -437,10 +438,12 @@ def _settled(found: list[Found], context: MapContext, rivals: list[RigidTransfor
 
 def _real(found: list[Found], context: MapContext) -> list[Found]:
     """The partitions that are real (step 7 of the README): coherent
-    (:func:`~brokenness.measure.recovery.drop_incoherent`), and not a redundant placement
-    (:func:`~brokenness.measure.partitions.drop_redundant`)."""
+    (:func:`~brokenness.measure.recovery.drop_incoherent`), not a redundant placement
+    (:func:`~brokenness.measure.partitions.drop_redundant`), and explaining the region of
+    the map they lie in (:func:`~brokenness.measure.explained.drop_unexplained`)."""
     found = drop_incoherent(found, context)
-    return drop_redundant(found, context.points, context.index, context.settings)
+    found = drop_redundant(found, context.points, context.index, context.settings)
+    return drop_unexplained(found, context)
 
 
 def _relocated(
@@ -547,7 +550,10 @@ def _judge(
     :func:`assemble` sorts them). The map is measured when the upper bound of its ratio, at
     the stopping rule's significance, is at most :data:`MAP_RATIO`, and so is the upper bound
     of the converse ratio, the map's walls in the reference's clear free space
-    (:func:`~brokenness.measure.evidence.wall_contradiction`).
+    (:func:`~brokenness.measure.evidence.wall_contradiction`); and first, its partitions
+    must hold at least :data:`~brokenness.measure.explained.MAP_SHARE` of its occupied cells
+    (:func:`~brokenness.measure.explained.explained_share`; the ratios are measured all the
+    same).
     """
     if not found:
         return (
@@ -565,7 +571,14 @@ def _judge(
     settings = context.settings
     upper = evidence.upper_ratio(settings.significance)
     reason: str | None = None
-    if not math.isfinite(upper):
+    explained = explained_share(found, context)
+    if explained < MAP_SHARE:
+        reason = (
+            f"only {100 * explained:.0f} % of the map's occupied cells agree with the reference "
+            f"under its partitions (at least {100 * MAP_SHARE:.0f} % must): most of the map is "
+            "not of the reference's place, or lies beyond it"
+        )
+    elif not math.isfinite(upper):
         reason = (
             "the map shows no free space on the reference under its partitions' transforms: "
             "nothing tells whether it is of the reference's place"
