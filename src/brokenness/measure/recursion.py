@@ -347,6 +347,9 @@ def _compute(
         searched = again
         found = _tested(again, context, rivals)
     found, evidence = _relocated(found, context, thorough, whole)
+    explaining = drop_unexplained(found, context)
+    if explaining is not found:  # partitions dropped: their free space is owned anew
+        found, evidence = explaining, None
     del whole  # the prepared reference (its distance map): no registration now
     reason, map_ratio, map_bound, ratios = _judge(found, context, evidence)
     found_partitions, labels_working = assemble(
@@ -438,12 +441,12 @@ def _settled(found: list[Found], context: MapContext, rivals: list[RigidTransfor
 
 def _real(found: list[Found], context: MapContext) -> list[Found]:
     """The partitions that are real (step 7 of the README): coherent
-    (:func:`~brokenness.measure.recovery.drop_incoherent`), not a redundant placement
-    (:func:`~brokenness.measure.partitions.drop_redundant`), and explaining the region of
-    the map they lie in (:func:`~brokenness.measure.explained.drop_unexplained`)."""
+    (:func:`~brokenness.measure.recovery.drop_incoherent`), and not a redundant placement
+    (:func:`~brokenness.measure.partitions.drop_redundant`); the last test of step 7, that
+    a partition explains the region of the map it lies in
+    (:func:`~brokenness.measure.explained.drop_unexplained`), runs once, before the judge."""
     found = drop_incoherent(found, context)
-    found = drop_redundant(found, context.points, context.index, context.settings)
-    return drop_unexplained(found, context)
+    return drop_redundant(found, context.points, context.index, context.settings)
 
 
 def _relocated(
