@@ -406,12 +406,12 @@ def _regions_around(
     points: NDArray[np.float64], cells: NDArray[np.bool_], min_cells: int
 ) -> list[NDArray[np.bool_]]:
     """The regions around groups of ``cells`` (:func:`_regions`) that hold at least
-    ``min_cells`` occupied cells, however few of ``cells``, in order of decreasing
-    ``cells`` held."""
+    ``min_cells`` occupied cells, however few of ``cells`` (every region holds one), in
+    order of decreasing ``cells`` held."""
     if not cells.any():
         return []
-    region, held, size = _regions(points, cells)
-    return [region == g for g in range(1, held.size) if held[g] > 0 and size[g] >= min_cells]
+    region, _, size = _regions(points, cells)
+    return [region == g for g in range(1, size.size) if size[g] >= min_cells]
 
 
 def _groups(
@@ -843,8 +843,8 @@ class _Search:
     ) -> tuple[Found | None, _Shortfall | None]:
         """The partition that the cells of ``step`` hide, if its hypothesis passes every
         test; else ``None`` and, if the hypothesis failed only the count (too few of the
-        cells agree coherently for a new partition), the hypothesis and its rivals (a rival
-        for the settle step too, unless the step is placed).
+        cells agree coherently for a new partition) and the step is not placed, the
+        hypothesis and its rivals (a rival for the settle step too).
 
         The hypotheses are those of the cells registered alone or, if the step has
         ``sources`` (masks over the map's cells), those of each source registered alone, or,
