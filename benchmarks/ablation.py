@@ -56,14 +56,15 @@ def _second_rounds() -> None:
     recursion.RECOVERY_ROUNDS = 1
 
 
-def _first_relocation() -> None:
-    recover = recursion.recover
+def _keyword_false(module: Any, name: str, keyword: str) -> None:
+    """Replace ``module.name`` by the same function called with ``keyword=False``."""
+    function = getattr(module, name)
 
     def without(*args: Any, **kwargs: Any) -> Any:
-        kwargs["relocate"] = False
-        return recover(*args, **kwargs)
+        kwargs[keyword] = False
+        return function(*args, **kwargs)
 
-    recursion.recover = without  # type: ignore[assignment]
+    setattr(module, name, without)
 
 
 def _relocation() -> None:
@@ -72,16 +73,6 @@ def _relocation() -> None:
 
 def _piece_rivals() -> None:
     recovery._piece_rivals = lambda *args, **kwargs: []  # type: ignore[assignment]
-
-
-def _place_every() -> None:
-    relocations = recovery._relocations
-
-    def without(*args: Any, **kwargs: Any) -> Any:
-        kwargs["place_every"] = False
-        return relocations(*args, **kwargs)
-
-    recovery._relocations = without  # type: ignore[assignment]
 
 
 def _searches_without(drop: Callable[[Any, Any], bool]) -> None:
@@ -98,10 +89,10 @@ def _searches_without(drop: Callable[[Any, Any], bool]) -> None:
 STAGES: dict[str, Callable[[], None]] = {
     "none": lambda: None,
     "second-rounds": _second_rounds,
-    "first-relocation": _first_relocation,
+    "first-relocation": lambda: _keyword_false(recursion, "recover", "relocate"),
     "relocation": _relocation,
     "piece-rivals": _piece_rivals,
-    "place-every": _place_every,
+    "place-every": lambda: _keyword_false(recovery, "_relocations", "place_every"),
     "all-suspects": lambda: _searches_without(
         lambda step, suspect: step.cells is suspect and not step.sources and not step.placed
     ),
