@@ -106,34 +106,25 @@ def _switch_off(stage: str) -> None:
     STAGES[stage]()
 
 
-def _folders(args: argparse.Namespace) -> list[Path]:
-    """The case folders: realistic sets ``args.sets`` and the drawn buildings (drawn into
-    their caches when missing; the cases that no draw fitted left out)."""
-    cases: list[tuple[Any, Path]] = []
+def _cases(args: argparse.Namespace) -> list[tuple[Any, str]]:
+    """The cases and their caches: realistic sets ``args.sets`` and the drawn buildings."""
+    cases: list[tuple[Any, str]] = []
     first, _, last = args.sets.partition("-")
     for s in range(int(first), int(last or first) + 1) if args.sets else ():
-        cases += [(c, args.cache) for c in realistic.case_list(first_seed=s)]
+        cases += [(c, str(args.cache)) for c in realistic.case_list(first_seed=s)]
     if args.drawn_seeds:
         from drawn_buildings import DRAWN
 
         drawn = realistic.case_list(logs=("none",), seeds=args.drawn_seeds, plans=tuple(DRAWN))
-        cases += [(c, args.drawn_cache) for c in drawn]
-    folders = [realistic.generate(case, cache) for case, cache in cases]
-    return [f for f in folders if f is not None]
-
-
-def _kind(row: dict[str, Any]) -> str:
-    source = str(row.get("source", ""))
-    if source == realistic.SIM:
-        return "simulated"
-    return "drawn" if source.startswith(realistic.PLAN) else "real logs"
+        cases += [(c, str(args.drawn_cache)) for c in drawn]
+    return cases
 
 
 def table(rows: list[dict[str, Any]]) -> str:
     """Per kind of case: cases, exact degree, all partitions true, not measured, CPU s."""
     out = ["| cases | n | exact | all true | not measured | CPU s |", "|---|---|---|---|---|---|"]
-    for kind in ("simulated", "real logs", "drawn"):
-        sel = [r for r in rows if _kind(r) == kind]
+    for kind in ("simulated", "real log", "plan"):
+        sel = [r for r in rows if realistic.source_kind(r["source"]) == kind]
         if sel:
             out.append(
                 f"| {kind} | {len(sel)} | {sum(bool(r.get('exact')) for r in sel)} "
@@ -142,23 +133,6 @@ def table(rows: list[dict[str, Any]]) -> str:
                 f"| {sum(r.get('cpu_seconds', 0.0) for r in sel):.0f} |"
             )
     return "\n".join(out)
-
-
-def changes(old: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[str]:
-    """The cases whose degree or all-true verdict differ from ``old``'s."""
-    before = {r["case"]: r for r in old}
-    out = []
-    for r in rows:
-        b = before.get(r["case"])
-        if b is not None and (b.get("degree"), b.get("all_true")) != (
-            r.get("degree"),
-            r.get("all_true"),
-        ):
-            out.append(
-                f"{r['case']} (expected {r['expected_degree']}): {realistic._outcome(b)} -> "
-                f"{realistic._outcome(r)}"
-            )
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -172,22 +146,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None)
     ap.add_argument("--compare", type=Path, default=None, help="a run of --stage none")
     args = ap.parse_args(argv)
-    folders = _folders(args)
-    if not folders:
-        print("no case could be drawn")
-        return 1
     start = time.perf_counter()
     with ProcessPoolExecutor(
         max(1, args.workers), initializer=_switch_off, initargs=(args.stage,)
     ) as pool:
-        rows = list(pool.map(realistic._evaluate_job, [str(f) for f in folders], chunksize=4))
+        # the cases missing from the caches drawn first, as realistic.py draws them
+        made = pool.map(realistic._generate_job, _cases(args))
+        folders = [folder for _, folder, _ in made if folder is not None]
+        if not folders:
+            print("no case could be drawn")
+            return 1
+        rows = list(pool.map(realistic._evaluate_job, folders, chunksize=4))
     print(f"stage off: {args.stage}; {len(rows)} cases, {time.perf_counter() - start:.0f} s")
     print(table(rows))
     if args.compare is not None:
-        old = json.loads(args.compare.read_text())["rows"]
+        old = json.loads(args.compare.read_text())
+        here = {r["case"] for r in rows}
         print(f"\n{args.compare}:")
-        print(table([r for r in old if r["case"] in {x["case"] for x in rows}]))
-        print("\n".join(changes(old, rows)) or "no case changed")
+        print(table([r for r in old["rows"] if r["case"] in here]))
+        print(realistic.compare(old, rows, []))
     out = args.out or realistic.RESULTS / f"ablation_{args.stage}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"stage": args.stage, "rows": rows}, indent=1))
