@@ -84,6 +84,12 @@ def add_parser(subparsers: Any) -> None:
         help="smallest partition as a share of the occupied cells (default 0.02)",
     )
     p.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        help="grid frames of each map to measure in (1-5; default 1; see 'compute --frames')",
+    )
+    p.add_argument(
         "--overlays",
         choices=("fast", "figure", "none"),
         default=None,
@@ -105,6 +111,7 @@ def _compute_options(args: argparse.Namespace) -> dict[str, Any]:
         "method": args.method,
         "threshold": args.threshold,
         "min_partition_fraction": args.min_partition_fraction,
+        "frames": args.frames,
     }
     return {k: v for k, v in given.items() if v is not None}
 

@@ -16,7 +16,10 @@ from ..errors import ParameterError
 from ..limits import check_candidates
 from ..registration.methods import METHODS
 
-__all__ = ["BrokennessOptions", "Settings"]
+__all__ = ["MAX_FRAMES", "BrokennessOptions", "Settings"]
+
+#: The most grid frames a map can be measured in (:mod:`brokenness.measure.frames`).
+MAX_FRAMES = 5
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,12 @@ class BrokennessOptions:
     registration_options : mapping
         Keyword options of the registration method (see :func:`brokenness.register`); kept
         as a sorted tuple of ``(name, value)`` pairs, so that the options stay frozen.
+    frames : int
+        Grid frames of the map the measure runs in (default 1: the map's own): with ``k``
+        of them, the map is also measured turned by a half turn, then a quarter turn each
+        way, then shifted (the first ``k``; at most 5), and the result that leaves the fewest
+        cells to no partition is kept (see :mod:`brokenness.measure.frames` and the README,
+        "Frames"). ``k`` times the time.
     """
 
     method: str = "ifmi"
@@ -69,6 +78,7 @@ class BrokennessOptions:
     max_candidates: int = 12
     seed: int | None = None
     registration_options: Mapping[str, Any] | tuple[tuple[str, Any], ...] = ()
+    frames: int = 1
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -95,6 +105,10 @@ class BrokennessOptions:
                 f"max_partitions must be an integer >= 1, got {self.max_partitions!r}"
             )
         check_candidates(self.max_candidates)  # in [1, MAX_CANDIDATES]
+        if not (_whole(self.frames) and 1 <= self.frames <= MAX_FRAMES):
+            raise ParameterError(
+                f"frames must be an integer from 1 to {MAX_FRAMES}, got {self.frames!r}"
+            )
         if self.seed is not None and not _whole(self.seed):
             raise ParameterError(f"seed must be an integer, got {self.seed!r}")
         given = self.registration_options

@@ -141,6 +141,7 @@ from .evidence import (
     wall_contradiction,
 )
 from .explained import MAP_SHARE, drop_unexplained, explained_share
+from .frames import FRAMES, back_to_own_frame, best_of, in_frame
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -273,19 +274,49 @@ def compute_brokenness(
     >>> compute_brokenness(room, room).degree
     0
     """
+    opts = _options(options, overrides)
     with small_pages():  # fresh grids without huge-page compaction (see brokenness._memory)
-        return _compute(map, reference, options, overrides)
+        if opts.frames == 1:
+            return _compute(map, reference, opts)
+        return _in_frames(map, reference, opts)
+
+
+def _in_frames(
+    map: MapLike,  # noqa: A002 - the paper's name
+    reference: MapLike,
+    opts: BrokennessOptions,
+) -> BrokennessResult:
+    """:func:`_compute` in the first ``opts.frames`` grid frames of the map, the best result
+    kept (:mod:`brokenness.measure.frames`), reported in the map's own cells; the warnings
+    of that result alone are issued."""
+    started = time.perf_counter()
+    original = _as_map(map, "map")
+    ref = _as_map(reference, "reference")
+    once = replace(opts, frames=1)
+    results: list[BrokennessResult] = []
+    said: list[list[warnings.WarningMessage]] = []
+    for frame in FRAMES[: opts.frames]:
+        moved, cells = in_frame(original, frame)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            result = _compute(moved, ref, once)
+        results.append(back_to_own_frame(result, frame, cells, original, ref))
+        said.append(seen)
+    best = best_of(results)
+    for message in said[best]:
+        warnings.warn(message.message, message.category, stacklevel=3)
+    chosen = results[best]
+    parameters = chosen.parameters | {"frames": opts.frames, "frame": FRAMES[best]}
+    return replace(chosen, parameters=parameters, seconds=time.perf_counter() - started)
 
 
 def _compute(
     map: MapLike,  # noqa: A002 - the paper's name
     reference: MapLike,
-    options: BrokennessOptions | None,
-    overrides: dict[str, Any],
+    opts: BrokennessOptions,
 ) -> BrokennessResult:
-    """:func:`compute_brokenness`."""
+    """:func:`compute_brokenness` in the map's own frame."""
     started = time.perf_counter()
-    opts = _options(options, overrides)
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
     original_points = cell_points(original.occupied)  # (N, 2), row-major order

@@ -1,0 +1,229 @@
+"""Frame invariance: the same map in another grid frame gets the same degree and partitions.
+
+A SLAM run starts anywhere, so the frame of a map's grid is arbitrary, and the degree must
+not depend on it. Each case of ``realistic.py`` (read from its cache; missing cases are drawn
+first, as that script draws them), and of ``drawn_buildings.py`` with ``--drawn-seeds``, is
+computed through the public API with its map as it is, and in the other frames of
+:mod:`brokenness.measure.frames` (the grid turned by 180, 90 and 270 degrees, exactly, and
+shifted by unknown rows and columns). Each result is compared with the one in the map's
+own frame:
+
+- *status*: measured in both or in neither;
+- *degree*: the same degree (or both not measured);
+- *partitions*: as many partitions, matched one-to-one: the transform of one in the other
+  frame, composed with the change of frame, puts the original partition's cells within
+  :data:`SAME_PLACE` cells (median) of where the original's transform puts them (the
+  tolerance of ``realistic.py``'s "all partitions true");
+- *all true*: every true part found, as ``realistic.py`` counts it, in each frame.
+
+The turned and shifted maps hold the same cells, so every difference comes from the
+measure itself: the registration's pooled images and the tiles of the settle step are laid
+on the grid, and ties are broken in the grid's order.
+
+The same runs give what the option ``frames=k`` of :func:`brokenness.compute_brokenness`
+would (the result of the first ``k`` frames that :func:`brokenness.measure.frames.best_of`
+keeps): the second table, all partitions true and the exact degree for ``k = 1..5``.
+
+Usage::
+
+    python benchmarks/frame_invariance.py --sets 0-2 --workers 2 [--drawn-seeds 8] [--out F]
+
+Output: the two tables per kind of case (simulated, real log, drawn), and a JSON file of
+every case's outcomes (``benchmarks/results/frame_invariance.json`` unless ``--out``).
+About 2.5 minutes a set on 2 cores (five computations a case).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import realistic  # noqa: E402
+
+from brokenness import (  # noqa: E402
+    BrokennessResult,
+    RigidTransform,
+    compute_brokenness,
+    load_map,
+)
+from brokenness.masking import cell_points  # noqa: E402
+from brokenness.measure import frames  # noqa: E402
+from brokenness.measure.frames import in_frame  # noqa: E402
+
+#: A partition in another frame is the same when it puts the original's cells within this
+#: many cells (median) of where the original puts them: the tolerance of a true partition.
+SAME_PLACE = realistic.TRUE_CELLS
+#: The frames other than the map's own (``brokenness.measure.frames.FRAMES``: a half turn,
+#: a quarter turn each way, then a shift).
+FRAMES = frames.FRAMES[1:]
+
+
+def same_partitions(
+    original: BrokennessResult, other: BrokennessResult, cells: RigidTransform
+) -> bool:
+    """Whether ``other`` (of the map moved by ``cells``) holds ``original``'s partitions."""
+    if len(original.partitions) != len(other.partitions):
+        return False
+    fits = np.zeros((len(original.partitions), len(other.partitions)), dtype=bool)
+    for i, p in enumerate(original.partitions):
+        own = cell_points(np.asarray(original.labels) == p.index)
+        if own.shape[0] == 0:
+            continue
+        for j, q in enumerate(other.partitions):
+            moved = q.transform.compose(cells)
+            fits[i, j] = float(np.median(p.transform.displacement(moved, own))) <= SAME_PLACE
+    return realistic.one_to_one(fits)
+
+
+def _outcome(
+    result: BrokennessResult,
+    cells: RigidTransform,
+    truths: list[RigidTransform],
+    labels: np.ndarray,
+) -> dict[str, Any]:
+    """Status, degree and whether every true part is found (``labels`` and ``truths`` of
+    the map in its own frame, ``cells`` the change of frame)."""
+    found = [p.transform.compose(cells) for p in result.partitions]
+    return {
+        "measured": bool(result.measured),
+        "degree": result.degree,
+        "all_true": bool(result.measured) and realistic.all_partitions_true(found, truths, labels),
+        "unassigned_cells": result.unassigned_cells,
+        "contradiction": result.contradiction,
+    }
+
+
+def evaluate(folder: str) -> dict[str, Any]:
+    """One case in its own frame and in every frame of :data:`FRAMES`; its row."""
+    warnings.simplefilter("ignore")
+    path = Path(folder)
+    truth = json.loads((path / "truth.json").read_text())
+    labels = np.load(path / "labels.npy")
+    truths = [RigidTransform.from_matrix(p["matrix"]) for p in truth["partitions"]]
+    m, r = load_map(path / "map.yaml"), load_map(path / "reference.yaml")
+    start = time.process_time()
+    original = compute_brokenness(m, r)
+    row: dict[str, Any] = {
+        "case": path.name,
+        "source": truth["case"]["source"],
+        "expected_degree": truth["expected_degree"],
+        "own frame": _outcome(original, RigidTransform.identity(), truths, labels),
+    }
+    for frame in FRAMES:
+        moved, cells = in_frame(m, frame)
+        result = compute_brokenness(moved, r)
+        row[frame] = {
+            **_outcome(result, cells, truths, labels),
+            "same_partitions": same_partitions(original, result, cells),
+        }
+    row["cpu_seconds"] = time.process_time() - start
+    return row
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    """Per kind of case and frame: cases, the same status, degree and partitions as in
+    the map's own frame, and every partition true (in the map's own frame in brackets)."""
+    out = [
+        "| cases | frame | n | same status | same degree | same partitions | all true |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for kind in ("simulated", "real log", "plan"):
+        sel = [r for r in rows if realistic.source_kind(r["source"]) == kind]
+        own = sum(bool(r["own frame"]["all_true"]) for r in sel)
+        for frame in FRAMES if sel else ():
+            status = sum(r[frame]["measured"] == r["own frame"]["measured"] for r in sel)
+            degree = sum(r[frame]["degree"] == r["own frame"]["degree"] for r in sel)
+            same = sum(bool(r[frame]["same_partitions"]) for r in sel)
+            true = sum(bool(r[frame]["all_true"]) for r in sel)
+            out.append(
+                f"| {kind} | {frame} | {len(sel)} | {status} | {degree} | {same} | {true} ({own}) |"
+            )
+    return "\n".join(out)
+
+
+def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
+    """The outcome ``compute_brokenness(..., frames=k)`` gives: of the first ``k`` frames
+    (the map's own first), the one :func:`brokenness.measure.frames.best_of` keeps."""
+    keys = ("own frame", *FRAMES)[:k]
+    results = [SimpleNamespace(**row[key]) for key in keys]
+    return dict(row[keys[frames.best_of(results)]])  # type: ignore[arg-type]
+
+
+def frames_table(rows: list[dict[str, Any]]) -> str:
+    """Per kind of case: all partitions true and the exact degree with ``frames=k``."""
+    ks = range(1, len(FRAMES) + 2)
+    head = " | ".join(f"frames={k}" for k in ks)
+    out = [f"| cases | n | {head} |", "|---|---|" + "---|" * len(ks)]
+    for kind in ("simulated", "real log", "plan"):
+        sel = [r for r in rows if realistic.source_kind(r["source"]) == kind]
+        if not sel:
+            continue
+        cells = []
+        for k in ks:
+            chosen = [with_frames(r, k) for r in sel]
+            true = sum(bool(c["all_true"]) for c in chosen)
+            pairs = zip(chosen, sel, strict=True)
+            exact = sum(c["degree"] == r["expected_degree"] for c, r in pairs)
+            cells.append(f"{true}, {exact}")
+        out.append(f"| {kind} (all true, exact) | {len(sel)} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--sets", default="0", help="realistic sets (first seeds), e.g. 0 or 0-2; '' for none"
+    )
+    ap.add_argument("--cache", type=Path, default=realistic.CACHE)
+    ap.add_argument("--drawn-seeds", type=int, default=0, help="drawn buildings too (seeds)")
+    ap.add_argument("--drawn-cache", type=Path, default=realistic.RESULTS / "drawn")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=realistic.RESULTS / "frame_invariance.json")
+    args = ap.parse_args(argv)
+    first, _, last = args.sets.partition("-")
+    cases = [
+        (case, str(args.cache))
+        for s in range(int(first), int(last or first) + 1)
+        if args.sets
+        for case in realistic.case_list(first_seed=s)
+    ]
+    if args.drawn_seeds:
+        from drawn_buildings import DRAWN
+
+        drawn = realistic.case_list(logs=("none",), seeds=args.drawn_seeds, plans=tuple(DRAWN))
+        cases += [(case, str(args.drawn_cache)) for case in drawn]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(max(1, args.workers)) as pool:
+        made = pool.map(realistic._generate_job, cases)
+        folders = [folder for _, folder, _ in made if folder is not None]
+        rows = list(pool.map(evaluate, folders, chunksize=2))
+    print(f"{len(rows)} cases, {time.perf_counter() - start:.0f} s")
+    print(table(rows))
+    print(frames_table(rows))
+    for r in rows:  # the cases whose partitions differ in some frame
+        changed = [f for f in FRAMES if not r[f]["same_partitions"]]
+        if changed:
+            own = r["own frame"]["degree"]
+            print(
+                f"  {r['case']}: degree {own}; "
+                + ", ".join(f"{f}: {r[f]['degree']}" for f in changed)
+            )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"sets": args.sets, "rows": rows}, indent=1))
+    print(f"results: {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

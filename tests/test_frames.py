@@ -1,0 +1,105 @@
+"""``frames``: the measure in several grid frames of the map, the best result kept."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import brokenness
+from brokenness import BrokennessOptions, OccupancyMap, compute_brokenness, load_map
+from brokenness.cli.main import main
+from brokenness.errors import ParameterError
+from brokenness.masking import cell_points
+from brokenness.measure.frames import FRAMES, back_to_own_frame, best_of, in_frame
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "broken_building_31.yaml"
+REFERENCE = ROOT / "examples" / "building_31.yaml"
+
+
+@pytest.fixture(scope="module")
+def example() -> tuple[OccupancyMap, OccupancyMap]:
+    return load_map(EXAMPLE), load_map(REFERENCE)
+
+
+@pytest.mark.parametrize("frames", [0, 6, 1.5, True, "2"])
+def test_frames_out_of_range_are_refused(frames):
+    with pytest.raises(ParameterError, match="frames"):
+        BrokennessOptions(frames=frames)
+
+
+@pytest.mark.parametrize("frame", FRAMES)
+def test_a_frame_holds_the_same_cells_where_its_transform_puts_them(example, frame):
+    m, _ = example
+    moved, cells = in_frame(m, frame)
+    assert moved.n_occupied == m.n_occupied and moved.resolution == m.resolution
+    landed = np.rint(cells.apply(cell_points(m.occupied))).astype(np.intp)
+    assert moved.occupied[landed[:, 1], landed[:, 0]].all()
+
+
+@pytest.mark.parametrize("frame", FRAMES[1:])
+def test_a_result_in_another_frame_is_reported_in_the_maps_own_cells(example, frame):
+    m, ref = example
+    own = compute_brokenness(m, ref)
+    moved, cells = in_frame(m, frame)
+    back = back_to_own_frame(compute_brokenness(moved, ref), frame, cells, m, ref)
+    assert back.labels.shape == m.shape
+    np.testing.assert_array_equal(back.labels >= -1, own.labels >= -1)  # the occupied cells
+    for p, q in zip(own.partitions, back.partitions, strict=True):
+        cells_of_p = cell_points(own.labels == p.index)
+        assert np.count_nonzero(back.labels == q.index) == q.cells
+        assert float(np.median(p.transform.displacement(q.transform, cells_of_p))) < 0.5
+        assert q.transform.world is not None  # metres in the map's own world frame
+        assert abs(q.transform.world.rotation_deg - p.transform.world.rotation_deg) < 0.5
+
+
+def test_the_best_result_leaves_fewest_cells_unassigned_then_crosses_fewest_walls(example):
+    m, ref = example
+    r = compute_brokenness(m, ref)
+    results = [
+        replace(r, unassigned_cells=5, contradiction=0.1),
+        replace(r, unassigned_cells=3, contradiction=0.4),
+        replace(r, unassigned_cells=3, contradiction=0.2),
+        replace(r, unassigned_cells=3, contradiction=0.2),
+        replace(r, unassigned_cells=3, contradiction=None),
+    ]
+    assert best_of(results) == 2
+
+
+def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):
+    m, ref = example
+    one = compute_brokenness(m, ref)
+    three = compute_brokenness(m, ref, frames=3)
+    assert three.degree == one.degree == 2
+    assert three.parameters["frames"] == 3 and three.parameters["frame"] in FRAMES[:3]
+    assert three.unassigned_cells <= one.unassigned_cells
+    assert three.labels.shape == m.shape
+
+
+def test_a_pair_not_measured_in_several_frames_warns_once():
+    walls = np.zeros((300, 300), bool)
+    walls[50, 40:260] = walls[250, 40:260] = walls[50:251, 40] = True
+    other = np.zeros((300, 300), bool)
+    for k in range(0, 300, 7):  # a comb: no room of the walls' shape
+        other[k, 10:290] = True
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        result = compute_brokenness(walls, other, frames=2)
+    said = [w for w in seen if issubclass(w.category, brokenness.NothingFoundWarning)]
+    assert result.measured is False and result.degree is None
+    assert len(said) == 1
+
+
+def test_cli_frames(capsys):
+    assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "2", "--json", "-"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record["degree"] == 2
+    assert record["parameters"]["frames"] == 2 and record["parameters"]["frame"] in FRAMES
+    assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "9"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--frames" in err[0]
