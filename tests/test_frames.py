@@ -77,6 +77,7 @@ def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):
     three = compute_brokenness(m, ref, frames=3)
     assert three.degree == one.degree == 2
     assert three.parameters["frames"] == 3 and three.parameters["frame"] in FRAMES[:3]
+    assert three.parameters["frame_degrees"] == [2, 2, 2]
     assert three.unassigned_cells <= one.unassigned_cells
     assert three.labels.shape == m.shape
 

@@ -333,6 +333,19 @@ def _write_json(path: Path, record: dict[str, Any]) -> None:
     atomic_write_text(path, json.dumps(record, indent=2) + "\n")
 
 
+def _frames_line(result: BrokennessResult, out: Any) -> None:
+    """With ``--frames`` 2 or more: every frame's degree and the frame kept."""
+    if "frame_degrees" not in result.parameters:
+        return
+    degrees = ", ".join(
+        "not measured" if d is None else str(d) for d in result.parameters["frame_degrees"]
+    )
+    out.print(
+        f"frames: {result.parameters['frames']} (degrees {degrees}); kept the "
+        f"{result.parameters['frame']} frame's result, the fewest cells unassigned"
+    )
+
+
 def _evidence_line(result: BrokennessResult) -> str:
     """The free-space evidence the measured degree rests on, and its limit (one line)."""
     from ..measure.evidence import MAP_RATIO
@@ -362,6 +375,7 @@ def _print_summary(
             f"[bold]degree of brokenness: not measured[/bold] ({result.reason}; method "
             f"{result.method}, {result.seconds:.3f} s)"
         )
+        _frames_line(result, out)
         return
     out.print(
         f"[bold]degree of brokenness: {result.degree}[/bold]  "
@@ -395,6 +409,7 @@ def _print_summary(
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
     out.print(_evidence_line(result))
+    _frames_line(result, out)
     note = "rot°/shift (cells): map cells onto reference cells, y down, + = clockwise on screen"
     if metres:
         note += "; world rot°/shift (m): ROS world frames, y up, + = counter-clockwise"

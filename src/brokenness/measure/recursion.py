@@ -288,7 +288,9 @@ def _in_frames(
 ) -> BrokennessResult:
     """:func:`_compute` in the first ``opts.frames`` grid frames of the map, the best result
     kept (:mod:`brokenness.measure.frames`), reported in the map's own cells; the warnings
-    of that result alone are issued."""
+    of that result alone are issued. Its ``parameters`` say which frame it came from
+    (``frame``) and the degree of every frame tried (``frame_degrees``, ``None`` where not
+    measured), so that a user sees how far they agree."""
     started = time.perf_counter()
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
@@ -306,7 +308,11 @@ def _in_frames(
     for message in said[best]:
         warnings.warn(message.message, message.category, stacklevel=3)
     chosen = results[best]
-    parameters = chosen.parameters | {"frames": opts.frames, "frame": FRAMES[best]}
+    parameters = chosen.parameters | {
+        "frames": opts.frames,
+        "frame": FRAMES[best],
+        "frame_degrees": [r.degree for r in results],  # how far the frames agree
+    }
     return replace(chosen, parameters=parameters, seconds=time.perf_counter() - started)
 
 
