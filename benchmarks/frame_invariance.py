@@ -21,8 +21,10 @@ measure itself: the registration's pooled images and the tiles of the settle ste
 on the grid, and ties are broken in the grid's order.
 
 The same runs give what the option ``frames=k`` of :func:`brokenness.compute_brokenness`
-would (the result of the first ``k`` frames that :func:`brokenness.measure.frames.best_of`
-keeps): the second table, all partitions true and the exact degree for ``k = 1..5``.
+gives (:func:`with_frames`: a map not measured in its own frame is not measured; else, of
+the first ``k`` frames' results that are measured, the one that
+:func:`brokenness.measure.frames.best_of` keeps): the second table, all partitions true and
+the exact degree for ``k = 1..5``.
 
 Usage::
 
@@ -153,9 +155,12 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
-    """The outcome ``compute_brokenness(..., frames=k)`` gives: of the first ``k`` frames
-    (the map's own first), the one :func:`brokenness.measure.frames.best_of` keeps."""
-    keys = ("own frame", *FRAMES)[:k]
+    """The outcome ``compute_brokenness(..., frames=k)`` gives: the map's own frame if it is
+    not measured there, else of the first ``k`` frames measured, the one
+    :func:`brokenness.measure.frames.best_of` keeps."""
+    if not row["own frame"]["measured"]:
+        return dict(row["own frame"])
+    keys = [key for key in ("own frame", *FRAMES)[:k] if row[key]["measured"]]
     results = [SimpleNamespace(**row[key]) for key in keys]
     return dict(row[keys[frames.best_of(results)]])  # type: ignore[arg-type]
 
@@ -192,12 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=realistic.RESULTS / "frame_invariance.json")
     args = ap.parse_args(argv)
     first, _, last = args.sets.partition("-")
-    cases = [
-        (case, str(args.cache))
-        for s in range(int(first), int(last or first) + 1)
-        if args.sets
-        for case in realistic.case_list(first_seed=s)
-    ]
+    seeds = range(int(first), int(last or first) + 1) if args.sets else range(0)
+    cases = [(c, str(args.cache)) for s in seeds for c in realistic.case_list(first_seed=s)]
     if args.drawn_seeds:
         from drawn_buildings import DRAWN
 

@@ -82,7 +82,7 @@ def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):
     assert three.labels.shape == m.shape
 
 
-def test_a_pair_not_measured_in_several_frames_warns_once():
+def test_a_pair_not_measured_in_its_own_frame_is_not_measured_in_several():
     walls = np.zeros((300, 300), bool)
     walls[50, 40:260] = walls[250, 40:260] = walls[50:251, 40] = True
     other = np.zeros((300, 300), bool)
@@ -94,6 +94,8 @@ def test_a_pair_not_measured_in_several_frames_warns_once():
     said = [w for w in seen if issubclass(w.category, brokenness.NothingFoundWarning)]
     assert result.measured is False and result.degree is None
     assert len(said) == 1
+    # decided in the map's own frame: the other frames are not tried
+    assert result.parameters["frame"] == "own" and result.parameters["frame_degrees"] == [None]
 
 
 def test_cli_frames(capsys):
@@ -104,3 +106,22 @@ def test_cli_frames(capsys):
     assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "9"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--frames" in err[0]
+
+
+def test_other_frames_offer_partitionings_of_a_measured_map_never_a_degree(example, monkeypatch):
+    from brokenness.measure import recursion
+
+    m, ref = example
+    real = compute_brokenness(m, ref)
+    per_frame = iter(
+        [
+            replace(real, unassigned_cells=50),  # own: measured
+            replace(real, unassigned_cells=10, measured=False, degree=None),  # fewer left
+            replace(real, unassigned_cells=20),  # turned 90: measured, fewer than own
+        ]
+    )
+    monkeypatch.setattr(recursion, "_compute", lambda *args: next(per_frame))
+    result = compute_brokenness(m, ref, frames=3)
+    assert result.parameters["frame"] == "turned 90" and result.unassigned_cells == 20
+    assert result.parameters["frame_degrees"] == [2, None, 2]
+    assert result.measured

@@ -62,10 +62,11 @@ class BrokennessOptions:
         as a sorted tuple of ``(name, value)`` pairs, so that the options stay frozen.
     frames : int
         Grid frames of the map the measure runs in (default 1: the map's own): with ``k``
-        of them, the map is also measured turned by a half turn, then a quarter turn each
-        way, then shifted (the first ``k``; at most 5), and the result that leaves the fewest
-        cells to no partition is kept (see :mod:`brokenness.measure.frames` and the README,
-        "Frames"). ``k`` times the time.
+        of them, a map measured in its own frame is also measured turned by a half turn,
+        then a quarter turn each way, then shifted (the first ``k``; at most 5), and of the
+        results measured, the one that leaves the fewest cells to no partition is kept (see
+        :mod:`brokenness.measure.frames` and the README, "Frames"). Up to ``k`` times the
+        time; a map not measured in its own frame is not measured (and costs one frame).
     """
 
     method: str = "ifmi"

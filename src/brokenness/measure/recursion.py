@@ -286,27 +286,29 @@ def _in_frames(
     reference: MapLike,
     opts: BrokennessOptions,
 ) -> BrokennessResult:
-    """:func:`_compute` in the first ``opts.frames`` grid frames of the map, the best result
-    kept (:mod:`brokenness.measure.frames`), reported in the map's own cells; the warnings
-    of that result alone are issued. Its ``parameters`` say which frame it came from
+    """:func:`_compute` in the map's own frame and, if the map is measured there, in the next
+    ``opts.frames - 1`` grid frames too; of the results measured, the best is kept
+    (:mod:`brokenness.measure.frames`), reported in the map's own cells.
+
+    Whether the map is measured is decided in its own frame, as without frames (its
+    warnings are issued as they are; the other frames' are not): the other frames only offer
+    other partitionings of a map that is measured, so they cannot give a degree where one
+    frame would give none. The result's ``parameters`` say which frame it came from
     (``frame``) and the degree of every frame tried (``frame_degrees``, ``None`` where not
     measured), so that a user sees how far they agree."""
     started = time.perf_counter()
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
-    results: list[BrokennessResult] = []
-    said: list[list[warnings.WarningMessage]] = []
-    for frame in FRAMES[: opts.frames]:
+    results = [_compute(original, ref, once)]
+    for frame in FRAMES[1 : opts.frames] if results[0].measured else ():
         moved, cells = in_frame(original, frame)
-        with warnings.catch_warnings(record=True) as seen:
-            warnings.simplefilter("always")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the map's own frame has said what there is
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
-        said.append(seen)
-    best = best_of(results)
-    for message in said[best]:
-        warnings.warn(message.message, message.category, stacklevel=3)
+    measured = [i for i, r in enumerate(results) if r.measured] or [0]
+    best = measured[best_of([results[i] for i in measured])]
     chosen = results[best]
     parameters = chosen.parameters | {
         "frames": opts.frames,
