@@ -26,9 +26,14 @@ the first ``k`` frames' results that are measured, the one that
 :func:`brokenness.measure.frames.best_of` keeps): the second table, all partitions true and
 the exact degree for ``k = 1..5``.
 
+``--controls`` runs the negative controls of ``negative_controls.py`` (``--quick``: its
+subset of about 20) in every frame instead: the degrees claimed per frame and with
+``frames=k``.
+
 Usage::
 
     python benchmarks/frame_invariance.py --sets 0-2 --workers 2 [--drawn-seeds 8] [--out F]
+    python benchmarks/frame_invariance.py --controls --workers 2 --out F  (about 50 minutes)
 
 Output: the two tables per kind of case (simulated, real log, drawn), and a JSON file of
 every case's outcomes (``benchmarks/results/frame_invariance.json`` unless ``--out``).
@@ -185,6 +190,67 @@ def frames_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(out)
 
 
+def evaluate_control(job: tuple[str, str, str, str]) -> dict[str, Any]:
+    """One negative control (map, reference names and files) in its own frame and in every
+    frame of :data:`FRAMES`: each frame's status, degree, unassigned cells, contradiction."""
+    warnings.simplefilter("ignore")
+    name_map, name_ref, path_map, path_ref = job
+    m, r = load_map(path_map), load_map(path_ref)
+    row: dict[str, Any] = {"pair": f"{name_map} vs {name_ref}"}
+    for frame in frames.FRAMES:
+        result = compute_brokenness(in_frame(m, frame)[0], r)
+        row["own frame" if frame == "own" else frame] = {
+            "measured": bool(result.measured),
+            "degree": result.degree,
+            "unassigned_cells": result.unassigned_cells,
+            "contradiction": result.contradiction,
+        }
+    return row
+
+
+def controls_table(rows: list[dict[str, Any]]) -> str:
+    """Degrees claimed on the negative controls, per frame and with ``frames=k``."""
+    keys = ("own frame", *FRAMES)
+    out = [
+        "| controls | "
+        + " | ".join(keys)
+        + " | "
+        + " | ".join(f"frames={k}" for k in range(1, len(keys) + 1))
+        + " |",
+        "|---|" + "---|" * (2 * len(keys)),
+    ]
+    per_frame = [sum(bool(r[key]["measured"]) for r in rows) for key in keys]
+    with_k = [
+        sum(bool(with_frames(r, k)["measured"]) for r in rows) for k in range(1, len(keys) + 1)
+    ]
+    out.append(f"| {len(rows)} claimed | " + " | ".join(map(str, per_frame + with_k)) + " |")
+    return "\n".join(out)
+
+
+def run_controls(args: argparse.Namespace) -> int:
+    """``--controls``: the negative controls of ``negative_controls.py`` in every frame."""
+    from cases import control_sources, negative_control_pairs, save_control_maps
+    from negative_controls import CACHE as CONTROLS
+
+    sources = control_sources()
+    pairs = negative_control_pairs(args.quick, sources)
+    paths = save_control_maps(sorted({n for p in pairs for n in p}), CONTROLS, sources)
+    jobs = [(a, b, str(paths[a]), str(paths[b])) for a, b in pairs]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(max(1, args.workers)) as pool:
+        rows = list(pool.map(evaluate_control, jobs, chunksize=2))
+    print(f"{len(rows)} controls, {time.perf_counter() - start:.0f} s")
+    print(controls_table(rows))
+    for r in rows:
+        claimed = [k for k in ("own frame", *FRAMES) if r[k]["measured"]]
+        if claimed:
+            print(f"  {r['pair']}: " + ", ".join(f"{k}: {r[k]['degree']}" for k in claimed))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"controls": True, "rows": rows}, indent=1))
+    print(f"results: {args.out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument(
@@ -195,7 +261,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--drawn-cache", type=Path, default=realistic.RESULTS / "drawn")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", type=Path, default=realistic.RESULTS / "frame_invariance.json")
+    ap.add_argument(
+        "--controls", action="store_true", help="the negative controls instead of the cases"
+    )
+    ap.add_argument("--quick", action="store_true", help="with --controls: about 20 pairs")
     args = ap.parse_args(argv)
+    if args.controls:
+        return run_controls(args)
     first, _, last = args.sets.partition("-")
     seeds = range(int(first), int(last or first) + 1) if args.sets else range(0)
     cases = [(c, str(args.cache)) for s in seeds for c in realistic.case_list(first_seed=s)]
