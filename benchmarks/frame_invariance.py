@@ -59,6 +59,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import realistic  # noqa: E402
 
 from brokenness import (  # noqa: E402
+    BrokennessOptions,
     BrokennessResult,
     RigidTransform,
     compute_brokenness,
@@ -108,6 +109,7 @@ def _outcome(
         "all_true": bool(result.measured) and realistic.all_partitions_true(found, truths, labels),
         "unassigned_cells": result.unassigned_cells,
         "contradiction": result.contradiction,
+        "partitions": len(result.partitions),
     }
 
 
@@ -125,6 +127,7 @@ def evaluate(folder: str) -> dict[str, Any]:
         "case": path.name,
         "source": truth["case"]["source"],
         "expected_degree": truth["expected_degree"],
+        "occupied_cells": original.occupied_cells,
         "own frame": _outcome(original, RigidTransform.identity(), truths, labels),
     }
     for frame in FRAMES:
@@ -162,12 +165,16 @@ def table(rows: list[dict[str, Any]]) -> str:
 def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
     """The outcome ``compute_brokenness(..., frames=k)`` gives: the map's own frame if it is
     not measured there, else of the first ``k`` frames measured, the one
-    :func:`brokenness.measure.frames.best_of` keeps."""
+    :func:`brokenness.measure.frames.best_of` keeps (each partition counted as the smallest
+    partition's cells)."""
     if not row["own frame"]["measured"]:
         return dict(row["own frame"])
     keys = [key for key in ("own frame", *FRAMES)[:k] if row[key]["measured"]]
-    results = [SimpleNamespace(**row[key]) for key in keys]
-    return dict(row[keys[frames.best_of(results)]])  # type: ignore[arg-type]
+    results = [
+        SimpleNamespace(**{**row[key], "partitions": range(row[key]["partitions"])}) for key in keys
+    ]
+    cost = BrokennessOptions().min_cells(row["occupied_cells"])
+    return dict(row[keys[frames.best_of(results, cost)]])  # type: ignore[arg-type]
 
 
 def frames_table(rows: list[dict[str, Any]]) -> str:
@@ -196,7 +203,7 @@ def evaluate_control(job: tuple[str, str, str, str]) -> dict[str, Any]:
     warnings.simplefilter("ignore")
     name_map, name_ref, path_map, path_ref = job
     m, r = load_map(path_map), load_map(path_ref)
-    row: dict[str, Any] = {"pair": f"{name_map} vs {name_ref}"}
+    row: dict[str, Any] = {"pair": f"{name_map} vs {name_ref}", "occupied_cells": m.n_occupied}
     for frame in frames.FRAMES:
         result = compute_brokenness(in_frame(m, frame)[0], r)
         row["own frame" if frame == "own" else frame] = {
@@ -204,6 +211,7 @@ def evaluate_control(job: tuple[str, str, str, str]) -> dict[str, Any]:
             "degree": result.degree,
             "unassigned_cells": result.unassigned_cells,
             "contradiction": result.contradiction,
+            "partitions": len(result.partitions),
         }
     return row
 

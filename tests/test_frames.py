@@ -58,9 +58,9 @@ def test_a_result_in_another_frame_is_reported_in_the_maps_own_cells(example, fr
         assert abs(q.transform.world.rotation_deg - p.transform.world.rotation_deg) < 0.5
 
 
-def test_the_best_result_leaves_fewest_cells_unassigned_then_crosses_fewest_walls(example):
+def test_the_best_result_leaves_fewest_cells_unexplained_then_crosses_fewest_walls(example):
     m, ref = example
-    r = compute_brokenness(m, ref)
+    r = compute_brokenness(m, ref)  # 3 partitions
     results = [
         replace(r, unassigned_cells=5, contradiction=0.1),
         replace(r, unassigned_cells=3, contradiction=0.4),
@@ -68,7 +68,22 @@ def test_the_best_result_leaves_fewest_cells_unassigned_then_crosses_fewest_wall
         replace(r, unassigned_cells=3, contradiction=0.2),
         replace(r, unassigned_cells=3, contradiction=None),
     ]
-    assert best_of(results) == 2
+    assert best_of(results, cost=30) == 2
+
+
+def test_one_partition_more_must_explain_what_a_partition_must_hold(example):
+    m, ref = example
+    r = compute_brokenness(m, ref)
+    more = replace(r, partitions=(*r.partitions, r.partitions[-1]))  # one partition more
+    cost = BrokennessOptions().min_cells(r.occupied_cells)  # 2 % of the map: 351 cells
+    assert cost == 351
+    # it leaves 350 cells fewer unexplained: not enough for a partition; 352 fewer: enough
+    assert (
+        best_of([replace(r, unassigned_cells=400), replace(more, unassigned_cells=50)], cost) == 0
+    )
+    assert (
+        best_of([replace(r, unassigned_cells=400), replace(more, unassigned_cells=48)], cost) == 1
+    )
 
 
 def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):

@@ -1,29 +1,36 @@
 """The measure in several grid frames of the map: the partitioning that explains the most.
 
 A map's grid frame is arbitrary (a SLAM run starts anywhere), and the same map turned by a
-multiple of 90 degrees, or shifted, holds the same cells. The measure is a deterministic
-but greedy search laid on the grid (the registration's pooled images, the settle step's
-tiles, strided samples of the cells in row-major order), so where two partitionings of a
-map explain it nearly as well, the frame can decide which one the search ends at: on the
+multiple of 90 degrees, or shifted, holds the same cells. The measure is a deterministic but
+greedy search laid on the grid (the registration's pooled images, the settle step's tiles,
+strided samples of the cells in row-major order), so where two partitionings of a map
+explain it nearly as well, the frame can decide which one the search ends at: on the
 realistic benchmark's sets 0-2 the degree was the same in every frame for 98-99 % of the
-maps, but every partition was true in all five frames for 146 of the 162 simulated maps,
-and in at least one of them for 161 (``benchmarks/frame_invariance.py``).
+maps, but every partition was true in all five frames for 146 of the 162 simulated maps, and
+in at least one of them for 161 (``benchmarks/frame_invariance.py``).
 
 :func:`in_frame` makes the map in one of :data:`FRAMES`; :func:`back_to_own_frame` reports a
 result of it in the map's own cells; :func:`best_of` keeps, of the results in several
-frames, the one that leaves the fewest occupied cells to no partition (the count every
-step of the measure maximises), then the one whose free space crosses the reference's walls
-least (the evidence of step 9), then the earlier frame. Several starts of one greedy search,
-judged by its own objective: no new test. Whether the map is measured at all is decided in
-its own frame, as without frames (:func:`brokenness.compute_brokenness` tries the other
-frames only for a map measured there, and keeps only results measured in theirs): in
-other frames, 5 of the 392 negative controls got a degree that their own frame refused
-(simulated buildings against others, whose free-space evidence is the thinnest), so the
-best of several frames' statuses would claim degrees that one frame does not.
+frames, the one that leaves the fewest occupied cells to no partition (the count every step
+of the measure maximises), each partition counted as the cells the stopping rule asks of a
+partition at least (:meth:`~brokenness.measure.options.BrokennessOptions.min_cells`: one
+partition more must explain that many more cells, as a partition of the recursion must),
+then the one whose free space crosses the reference's walls least (the evidence of step 9),
+then the earlier frame. Several starts of one greedy search, judged by its own objective and
+its own floor: no new test. Without the cost per partition, a frame that splits off a
+spurious partition of a few dozen cells won (a real-log map of sets 3-6 at degree 8 came out
+9). Whether the map is measured at all is decided in its own frame, as without frames
+(:func:`brokenness.compute_brokenness` tries the other frames only for a map measured there,
+and keeps only results measured in theirs): in other frames, 5 of the 392 negative controls
+got a degree that their own frame refused (simulated buildings against others, whose
+free-space evidence is the thinnest), so the best of several frames' statuses would claim
+degrees that one frame does not.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -92,15 +99,17 @@ def back_to_own_frame(
     )
 
 
-def best_of(results: list[BrokennessResult]) -> int:
-    """The index of the result that leaves the fewest occupied cells unassigned, then whose
-    free-space contradiction (``result.contradiction``; none counts as the highest) is
-    lowest, then the first."""
+def best_of(results: Sequence[BrokennessResult], cost: float) -> int:
+    """The index of the result that leaves the fewest occupied cells unexplained, each of
+    its partitions counted as ``cost`` cells more (the smallest partition,
+    :meth:`BrokennessOptions.min_cells`: one partition more must explain that many more
+    cells), then whose free-space contradiction (``result.contradiction``; none counts as
+    the highest) is lowest, then the first."""
 
-    def key(i: int) -> tuple[int, float, int]:
+    def key(i: int) -> tuple[float, float, int]:
         r = results[i]
-        contradiction = np.inf if r.contradiction is None else r.contradiction
-        return r.unassigned_cells, contradiction, i
+        contradiction = math.inf if r.contradiction is None else r.contradiction
+        return r.unassigned_cells + cost * len(r.partitions), contradiction, i
 
     return min(range(len(results)), key=key)
 

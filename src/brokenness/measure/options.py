@@ -129,6 +129,11 @@ class BrokennessOptions:
         """The merge threshold in effect (``2 * threshold`` unless given)."""
         return 2.0 * self.threshold if self.merge_threshold is None else self.merge_threshold
 
+    def min_cells(self, n_occupied: int) -> int:
+        """The smallest partition of a map of ``n_occupied`` occupied cells, in cells:
+        ``max(min_partition_cells, ceil(min_partition_fraction * n_occupied))``."""
+        return max(self.min_partition_cells, math.ceil(self.min_partition_fraction * n_occupied))
+
     @property
     def registration_kwargs(self) -> dict[str, Any]:
         """``registration_options`` as keyword arguments."""
@@ -201,10 +206,7 @@ class Settings:
         return cls(
             threshold=options.threshold,
             loose=options.loose,
-            min_cells=max(
-                options.min_partition_cells,
-                math.ceil(options.min_partition_fraction * n_occupied),
-            ),
+            min_cells=options.min_cells(n_occupied),
             significance=options.significance,
             max_partitions=options.max_partitions,
             max_candidates=options.max_candidates,

@@ -308,7 +308,8 @@ def _in_frames(
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
     measured = [i for i, r in enumerate(results) if r.measured] or [0]
-    best = measured[best_of([results[i] for i in measured])]
+    cost = opts.min_cells(results[0].occupied_cells)  # what a partition must hold
+    best = measured[best_of([results[i] for i in measured], cost)]
     chosen = results[best]
     parameters = chosen.parameters | {
         "frames": opts.frames,
