@@ -87,6 +87,7 @@ def add_parser(subparsers: Any) -> None:
         "--frames",
         type=int,
         default=None,
+        metavar="K",
         help="grid frames of each map to measure in (1-5; default 1; see 'compute --frames')",
     )
     p.add_argument(

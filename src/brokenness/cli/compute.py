@@ -114,10 +114,12 @@ def add_parser(subparsers: Any) -> None:
         "--frames",
         type=int,
         default=1,
+        metavar="K",
         help=(
-            "grid frames of MAP to measure in (1-5, default 1: its own): also turned by a "
-            "half turn, a quarter turn each way, shifted; the result that leaves the fewest "
-            "cells unassigned is kept (N times the time; see the README, 'Frames')"
+            "grid frames of MAP to measure in (1-5, default 1: its own): a map measured in "
+            "its own frame is also measured turned by a half turn, a quarter turn each way, "
+            "shifted, and the partitioning that explains the most is kept (up to K times "
+            "the time; see the README, 'Frames')"
         ),
     )
     p.add_argument(
@@ -342,7 +344,8 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
     )
     out.print(
         f"frames: {result.parameters['frames']} (degrees {degrees}); kept the "
-        f"{result.parameters['frame']} frame's result, the fewest cells unassigned"
+        f"{result.parameters['frame']} frame's result (the fewest cells unassigned, each "
+        "partition counted as the smallest partition's cells)"
     )
 
 

@@ -64,7 +64,8 @@ class BrokennessOptions:
         Grid frames of the map the measure runs in (default 1: the map's own): with ``k``
         of them, a map measured in its own frame is also measured turned by a half turn,
         then a quarter turn each way, then shifted (the first ``k``; at most 5), and of the
-        results measured, the one that leaves the fewest cells to no partition is kept (see
+        results measured, the one that leaves the fewest cells to no partition, each
+        partition counted as :meth:`min_cells` cells, is kept (see
         :mod:`brokenness.measure.frames` and the README, "Frames"). Up to ``k`` times the
         time; a map not measured in its own frame is not measured (and costs one frame).
     """
