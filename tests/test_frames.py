@@ -140,3 +140,35 @@ def test_other_frames_offer_partitionings_of_a_measured_map_never_a_degree(examp
     assert result.parameters["frame"] == "turned 90" and result.unassigned_cells == 20
     assert result.parameters["frame_degrees"] == [2, None, 2]
     assert result.measured
+
+
+def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
+    from brokenness.report.collect import ResultEntry
+    from brokenness.report.tables import run_settings
+
+    common = {"threshold": 2.0, "frames": 3}
+    entries = [
+        ResultEntry(
+            tmp_path / "a.zip",
+            degree=2,
+            measured=True,
+            method="ifmi",
+            parameters={**common, "frame": "own", "frame_degrees": [2, 2, 2]},
+        ),
+        ResultEntry(
+            tmp_path / "b.zip",
+            degree=4,
+            measured=True,
+            method="ifmi",
+            parameters={**common, "frame": "turned 90", "frame_degrees": [3, 4, 4]},
+        ),
+    ]
+    assert run_settings(entries) == {}  # the same options: one group
+    other = ResultEntry(
+        tmp_path / "c.zip",
+        degree=4,
+        measured=True,
+        method="ifmi",
+        parameters={**common, "frames": 1},
+    )
+    assert "parameters" in run_settings([*entries, other])  # other options: apart

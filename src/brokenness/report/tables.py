@@ -74,7 +74,9 @@ _SUFFIXES = {".csv": "csv", ".md": "markdown", ".markdown": "markdown"}
 #: and the parameters that differ between the results compared (``k=v; k=v``).
 RUN_COLUMNS: tuple[str, ...] = ("method", "parameters")
 #: Parameters that differ from run to run by design, never a reason to keep results apart.
-_RUN_SPECIFIC = frozenset({"seed", "working_resolution", "working_threshold"})
+_RUN_SPECIFIC = frozenset(
+    {"seed", "working_resolution", "working_threshold", "frame", "frame_degrees"}
+)
 
 
 @dataclass(frozen=True)
