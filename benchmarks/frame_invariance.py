@@ -65,7 +65,6 @@ from brokenness import (  # noqa: E402
     compute_brokenness,
     load_map,
 )
-from brokenness.masking import cell_points  # noqa: E402
 from brokenness.measure import frames  # noqa: E402
 from brokenness.measure.frames import in_frame  # noqa: E402
 
@@ -80,18 +79,15 @@ FRAMES = frames.FRAMES[1:]
 def same_partitions(
     original: BrokennessResult, other: BrokennessResult, cells: RigidTransform
 ) -> bool:
-    """Whether ``other`` (of the map moved by ``cells``) holds ``original``'s partitions."""
-    if len(original.partitions) != len(other.partitions):
-        return False
-    fits = np.zeros((len(original.partitions), len(other.partitions)), dtype=bool)
-    for i, p in enumerate(original.partitions):
-        own = cell_points(np.asarray(original.labels) == p.index)
-        if own.shape[0] == 0:
-            continue
-        for j, q in enumerate(other.partitions):
-            moved = q.transform.compose(cells)
-            fits[i, j] = float(np.median(p.transform.displacement(moved, own))) <= SAME_PLACE
-    return realistic.one_to_one(fits)
+    """Whether ``other`` (of the map moved by ``cells``) holds ``original``'s partitions: the
+    test of a true partition (``realistic.all_partitions_true``), ``original``'s partitions
+    and labels taking the place of the true parts."""
+    return realistic.all_partitions_true(
+        [q.transform.compose(cells) for q in other.partitions],
+        [p.transform for p in original.partitions],
+        np.asarray(original.labels),
+        SAME_PLACE,
+    )
 
 
 def _outcome(
