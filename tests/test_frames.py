@@ -148,29 +148,16 @@ def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
     from brokenness.report.collect import ResultEntry
     from brokenness.report.tables import run_settings
 
-    common = {"threshold": 2.0, "frames": 3}
+    def entry(name: str, degree: int, **parameters: object) -> ResultEntry:
+        parameters = {"threshold": 2.0, "frames": 3, **parameters}
+        return ResultEntry(
+            tmp_path / name, degree=degree, measured=True, method="ifmi", parameters=parameters
+        )
+
     entries = [
-        ResultEntry(
-            tmp_path / "a.zip",
-            degree=2,
-            measured=True,
-            method="ifmi",
-            parameters={**common, "frame": "own", "frame_degrees": [2, 2, 2]},
-        ),
-        ResultEntry(
-            tmp_path / "b.zip",
-            degree=4,
-            measured=True,
-            method="ifmi",
-            parameters={**common, "frame": "turned 90", "frame_degrees": [3, 4, 4]},
-        ),
+        entry("a.zip", 2, frame="own", frame_degrees=[2, 2, 2]),
+        entry("b.zip", 4, frame="turned 90", frame_degrees=[3, 4, 4]),
     ]
     assert run_settings(entries) == {}  # the same options: one group
-    other = ResultEntry(
-        tmp_path / "c.zip",
-        degree=4,
-        measured=True,
-        method="ifmi",
-        parameters={**common, "frames": 1},
-    )
+    other = entry("c.zip", 4, frames=1)
     assert "parameters" in run_settings([*entries, other])  # other options: apart
