@@ -126,7 +126,8 @@ def test_random_walk_gets_the_recovery_with_the_wider_walk(depot, monkeypatch):
     assert result.degree == 1
     # one round: the tests after it change nothing, so a second would search the same
     # suspects again (``recursion._same_partitions``); it is run with the wider walk
-    assert len(seen) == 1 and isinstance(seen[0], RandomWalkRegistrar)
+    # (the measure's registrars remember their hypotheses: ``measure.pool.Recorded``)
+    assert len(seen) == 1 and isinstance(seen[0].registrar, RandomWalkRegistrar)
     assert seen[0].seed == 1
     assert (seen[0].options.walkers_per_angle, seen[0].options.spectral_starts) == (2, 6)
 

@@ -116,3 +116,21 @@ def test_a_reference_that_knows_little_free_space_does_not_hide_the_partitions()
     result = compute_brokenness(sim.map, dense)
     assert len(result.partitions) == 4
     assert max(_transform_errors(result, sim)) < 1.5
+
+
+def test_a_partition_at_a_twin_takes_a_hypothesis_of_an_earlier_registration(monkeypatch):
+    """One partition of this map ends at a twin of its part's place, 115 cells off; its true
+    transform was among the hypotheses of an earlier registration of the call, and offered
+    again at the end (``measure/pool.py``) it makes more of the map agree: every partition
+    is then a true one."""
+    import brokenness.measure.recursion as recursion
+
+    degree, seed = 4, 1008
+    sim = simulate_broken_map(seed=seed, degree=degree)
+    result = compute_brokenness(sim.map, sim.reference)
+    assert result.degree == degree
+    assert max(_transform_errors(result, sim)) < 1.0
+    monkeypatch.setattr(recursion, "offered", lambda *args: [])  # no hypothesis offered again
+    alone = compute_brokenness(sim.map, sim.reference)
+    assert alone.degree == degree
+    assert max(_transform_errors(alone, sim)) > 50.0

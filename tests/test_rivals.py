@@ -132,3 +132,34 @@ def test_a_turned_partition_needs_more_own_cells_than_chance_could_give(
     assert 6 > normal  # the old test passed it
     kept = drop_redundant(found, points, corner_index, SETTINGS)
     assert [f.transform for f in kept] == [found[0].transform]
+
+
+def test_by_count_takes_a_rival_for_any_gain(corner_index, broken) -> None:
+    # the same margin no gain can pass, in the last pass of the settle step (``by_count``):
+    # no partition is emptied, so the placement that explains more cells is taken
+    points, right, truth, wrong = broken
+    strict = replace(SETTINGS, significance=1e4)
+    found = _found(points, right, wrong)
+    settled = settle(found, points, corner_index, strict, [truth], refits=False, by_count=True)
+    assert len(settled) == 2
+    assert median_error(settled[1].transform, truth, points[right]) < 0.5
+
+
+def test_by_count_still_needs_significance_to_empty_a_partition(corner_index, broken) -> None:
+    # the part held as two halves at wrong places: the true transform, offered to one of
+    # them, leaves the other without cells of its own; with a margin no gain can pass, it
+    # is not taken, even by the count
+    points, right, truth, wrong = broken
+    strict = replace(SETTINGS, significance=1e4)
+    part = np.flatnonzero(right)
+    upper = part[points[part, 1] < np.median(points[part, 1])]
+    lower = np.setdiff1d(part, upper)
+    found = [
+        Found(RigidTransform(), np.flatnonzero(~right), 1.0, 0.0),
+        Found(wrong, upper, 1.0, 0.0),
+        Found(RigidTransform(0.0, 0.0, -120.0).compose(truth), lower, 1.0, 0.0),
+    ]
+    kept = settle(found, points, corner_index, strict, [truth], refits=False, by_count=True)
+    assert min(median_error(f.transform, truth, points[right]) for f in kept) > 10.0
+    taken = settle(found, points, corner_index, SETTINGS, [truth], refits=False, by_count=True)
+    assert min(median_error(f.transform, truth, points[right]) for f in taken) < 0.5

@@ -34,6 +34,10 @@ The recursion, for a map M and a reference R::
         translation at those hypotheses' rotations (measure.placement); the best
         hypotheses, and the placement whose free space fits best, offered as rivals to
         the settle step (taken on agreement, or on free space that fits)
+    choose again (a map measured below only): every hypothesis of the call that could
+        make more cells agree is offered to every partition, taken for any gain of the
+        count (measure.pool); undone if a partition is then dropped, or if the map is then
+        no longer measured
     measured only if the map's free space does not cross the reference's walls
         (measure.evidence): else not the same place, no degree
 
@@ -153,6 +157,7 @@ from .partitions import (
     merge_target,
     with_fringe,
 )
+from .pool import Recorded, offered
 from .recovery import drop_incoherent, recover, relocation_rivals
 from .result import BrokennessResult, Partition
 from .settle import settle
@@ -160,6 +165,7 @@ from .support import occupied_around
 from .views import (
     candidates_of,
     exhausted,
+    isolated_points,
     moving_remainder,
     occupied_count,
     prepared_reference,
@@ -169,6 +175,9 @@ from .views import (
 __all__ = ["compute_brokenness"]
 
 MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
+#: :func:`_judge`'s verdict: why the map is not measured (``None``: it is), the map's ratio,
+#: its upper bound and each partition's ratio.
+Verdict = tuple[str | None, float | None, float | None, list[float | None]]
 
 #: iFMI options of the recursion, under the user's: a remainder mixes partitions, so more
 #: rotation peaks are worth examining than for a single registration.
@@ -350,6 +359,11 @@ def _compute(
     else:
         thorough = _wider(registrar)
 
+    # every hypothesis of the call, remembered for the last pass (:func:`_rechosen`)
+    hypotheses: list[RigidTransform] = []
+    registrar = Recorded(registrar, hypotheses)
+    if thorough is not None:
+        thorough = Recorded(thorough, hypotheses)
     points = original_points if working is original else cell_points(working.occupied)
     uses_free = bool(getattr(registrar, "uses_free_space", True))
     as_cells = bool(getattr(registrar, "accepts_cells", False))
@@ -386,12 +400,12 @@ def _compute(
             break
         searched = again
         found = _tested(again, context, rivals)
-    found, evidence = _relocated(found, context, thorough, whole)
-    explaining = drop_unexplained(found, context)
-    if explaining is not found:  # partitions dropped: their free space is owned anew
-        found, evidence = explaining, None
+    found, evidence = _relocated(found, context, thorough, whole, hypotheses)
     del whole  # the prepared reference (its distance map): no registration now
-    reason, map_ratio, map_bound, ratios = _judge(found, context, evidence)
+    found, verdict = _explained_and_judged(found, context, evidence)
+    if verdict[0] is None:  # measured: every hypothesis of the call, offered once more
+        found, verdict = _rechosen(found, verdict, context, hypotheses)
+    reason, map_ratio, map_bound, ratios = verdict
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
     )
@@ -490,7 +504,11 @@ def _real(found: list[Found], context: MapContext) -> list[Found]:
 
 
 def _relocated(
-    found: list[Found], context: MapContext, registrar: Registrar, whole: Any
+    found: list[Found],
+    context: MapContext,
+    registrar: Registrar,
+    whole: Any,
+    hypotheses: list[RigidTransform],
 ) -> tuple[list[Found], Contradiction | None]:
     """The settled partitions, each that may be at a wrong place offered the best places that
     its own cells and its neighbourhood give registered alone
@@ -509,6 +527,8 @@ def _relocated(
     room puts its free space on walls about as often as chance (on the failing maps of the
     realistic benchmark traced, 0.7-1.9 times); a partition whose free space shows that it
     is in place is not searched again (the registrations are most of the cost of this step).
+    The rivals are added to ``hypotheses`` (the placements among them are no registration's:
+    :func:`_rechosen` offers them again).
 
     Returns the partitions and, if they are the ones given, their contradiction (for
     :func:`_judge`; else ``None``).
@@ -520,6 +540,7 @@ def _relocated(
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(found, context, registrar, whole, which, owned)
+    hypotheses.extend(rivals)  # the placements among them too, for :func:`_rechosen`
     if not rivals:
         return found, evidence
     moved = settle(found, points, index, settings, rivals, refits=False, clear=clear, owned=owned)
@@ -527,6 +548,45 @@ def _relocated(
         return found, evidence
     moved = settle(moved, points, index, settings, rivals, clear=clear)
     return _real(moved, context), None
+
+
+def _rechosen(
+    found: list[Found], verdict: Verdict, context: MapContext, hypotheses: list[RigidTransform]
+) -> tuple[list[Found], Verdict]:
+    """The partitions of a measured map (``verdict``, :func:`_judge`'s), each offered every
+    hypothesis of the call that could make more cells agree
+    (:mod:`~brokenness.measure.pool`), judged by the count alone, then the tests of
+    :func:`_real` and of :func:`_explained_and_judged` again. The pass decides neither the
+    degree nor whether the map is measured: it is undone (``found`` and ``verdict`` are
+    returned) if a partition is dropped or the map is no longer measured.
+    """
+    points, index, settings = context.points, context.index, context.settings
+    walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
+    transforms = [f.transform for f in found]
+    rivals = offered(hypotheses, transforms, walls, index, settings.threshold)
+    if not rivals:
+        return found, verdict
+    moved = settle(
+        found, points, index, settings, rivals, refits=False, clear=context.clear, by_count=True
+    )
+    if moved is found:
+        return found, verdict
+    again, judged = _explained_and_judged(_real(moved, context), context, None)
+    if judged[0] is not None or len(again) != len(found):
+        return found, verdict
+    return again, judged
+
+
+def _explained_and_judged(
+    found: list[Found], context: MapContext, evidence: Contradiction | None
+) -> tuple[list[Found], Verdict]:
+    """The partitions that explain their region of the map
+    (:func:`~brokenness.measure.explained.drop_unexplained`), and :func:`_judge`'s verdict
+    on them (``evidence`` is ``found``'s contradiction, if made)."""
+    explaining = drop_unexplained(found, context)
+    if explaining is not found:  # partitions dropped: their free space is owned anew
+        evidence = None
+    return explaining, _judge(explaining, context, evidence)
 
 
 def _wider(registrar: Registrar) -> Registrar:
@@ -583,7 +643,7 @@ def _region_candidates(
 
 def _judge(
     found: list[Found], context: MapContext, evidence: Contradiction | None = None
-) -> tuple[str | None, float | None, float | None, list[float | None]]:
+) -> Verdict:
     """Contradiction test of the partitions (:mod:`brokenness.measure.evidence`; their
     :func:`~brokenness.measure.evidence.contradiction` made here unless given).
 

@@ -132,6 +132,7 @@ def settle(
     refits: bool = True,
     clear: ClearFree | None = None,
     owned: FreeSpace | None = None,
+    by_count: bool = False,
 ) -> list[Found]:
     """Refit each partition's transform on tiles of its cells; keep what explains more, and
     split a partition whose refits are two parts (see the module docstring).
@@ -162,6 +163,10 @@ def settle(
     owned : FreeSpace, optional
         :func:`~brokenness.measure.evidence.free_space` of ``found``, if already made (made
         here when a rival needs it).
+    by_count : bool, optional
+        Take a rival that empties no partition for any gain of the count (the last pass of
+        the settle step, :mod:`~brokenness.measure.pool`: the number of partitions is not
+        at stake); a rival that empties one must still be significant.
 
     Returns
     -------
@@ -228,6 +233,7 @@ def settle(
                     settings,
                     None if free is None else free.clears(j, transforms[j], candidates[c]),
                     ties=tie is None and best is None,
+                    by_count=by_count,
                 )
                 if offer is None:
                     continue
@@ -285,7 +291,7 @@ def settle(
     if added and free is not None:
         settled = _without_worse_halves(settled, halves, points, index, settings, free)
     if added and len(settled) > len(found):  # the new partitions' own tiles: settle again
-        return settle(settled, points, index, settings, rivals, refits, clear)
+        return settle(settled, points, index, settings, rivals, refits, clear, by_count=by_count)
     return settled
 
 
@@ -323,6 +329,7 @@ def _rival_gain(
     settings: Settings,
     clears: Callable[[], bool] | None = None,
     ties: bool = False,
+    by_count: bool = False,
 ) -> tuple[int, NDArray[np.intp]] | None:
     """What replacing partition ``j``'s transform by a rival (its agreement ``offered``)
     gains, and the partitions it leaves redundant (step 3). ``without`` is what the
@@ -346,7 +353,8 @@ def _rival_gain(
     part of 7 % explained as many cells, one more or less as other partitions moved, while
     its free space crossed the reference's walls significantly less often); :func:`settle`
     takes such a tie only when no rival adds a cell (and, as every replacement, uses each
-    candidate once, so the step ends). ``None``: the rival is not taken. (A version that
+    candidate once, so the step ends). With ``by_count``, a rival that empties no partition
+    is taken for any gain. ``None``: the rival is not taken. (A version that
     also credited each dropped partition with the smallest partition's cells, a cost per
     partition, replaced two small partitions by one transform that explained fewer cells: a
     degree one short.)
@@ -360,6 +368,8 @@ def _rival_gain(
     if redundant.size:
         after = after - _column_counts(agree[redundant])
     gain = int(np.count_nonzero(after)) - explained
+    if by_count and gain > 0 and redundant.size == 0:
+        return gain, redundant
     contested = int(np.count_nonzero((agree[j] | offered) & ~others))
     margin = settings.significance * np.sqrt(contested * p0 * (1.0 - p0))
     if gain > margin or (gain > 0 and clears is not None and clears()):

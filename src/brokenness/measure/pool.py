@@ -1,0 +1,174 @@
+"""Every hypothesis of a call, offered once more when the partitions are settled.
+
+Each registration of the measure (a step of the recursion, a region, a group of suspect
+cells in the recovery, a partition's own cells in the relocation) returns several ranked
+hypotheses, and the stage that asked keeps the best one for the cells it registered. A
+hypothesis that was second there, or that was registered on cells of several parts, may
+still be the best transform of a partition found later: a part held at a twin of its room
+(or as a compromise of two parts) is often exactly such a case, its true transform found by
+an earlier registration of cells that were not yet its own (on the simulated maps of the
+realistic benchmark traced, every part's true transform was among the hypotheses of the
+call, within a cell, while the partition holding it stood at a twin).
+
+So the measure remembers every hypothesis (:class:`Recorded`, a registrar that records
+what it returns; the relocation adds its placements, which no registration returns), and
+the settle step offers those that could make the map agree more
+(:func:`offered`) to every partition as rivals, judged by the count alone
+(``settle(..., by_count=True)``): the number of partitions is not at stake there (a rival
+that would empty a partition must still be significant, and the pass is undone if the
+tests of real partitions then drop one), so the placement under which more of the map's
+cells agree wins, as the registration itself chooses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..masking import ReferenceIndex
+from ..registration.base import Candidate, Registrar
+from ..transform import RigidTransform
+
+__all__ = ["Recorded", "offered"]
+
+#: Hypotheses that put the map's centre within the same cell, at rotations within the same
+#: half degree, are one: the first is kept (a partition's cells lie within a few hundred
+#: cells of the centre, where the two differ by about a cell at most).
+_ROTATION_STEP_DEG = 0.5
+#: Cells looked up at once (the agreement rows of a batch of hypotheses: bounded
+#: temporaries, whatever the pool).
+_BATCH_CELLS = 1 << 20
+
+
+class Recorded:
+    """A registrar that remembers every hypothesis it returns, in ``pool`` (in order).
+
+    Everything but :meth:`candidates` is the wrapped ``registrar``'s own (its optional
+    attributes too), so the measure drives it as it would the registrar.
+    """
+
+    def __init__(self, registrar: Registrar, pool: list[RigidTransform]) -> None:
+        self.registrar = registrar
+        self._pool = pool
+        self.name = registrar.name
+        self.uses_free_space = registrar.uses_free_space
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.registrar, name)
+
+    def prepare_reference(self, reference_states: Any) -> Any:
+        """The wrapped registrar's own."""
+        return self.registrar.prepare_reference(reference_states)
+
+    def candidates(
+        self, prepared_reference: Any, moving_states: Any, max_candidates: int
+    ) -> list[Candidate]:
+        """The wrapped registrar's hypotheses, recorded."""
+        out = self.registrar.candidates(prepared_reference, moving_states, max_candidates)
+        self._pool.extend(c.transform for c in out)
+        return out
+
+
+def offered(
+    pool: Sequence[RigidTransform],
+    transforms: Sequence[RigidTransform],
+    walls: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> list[RigidTransform]:
+    """The hypotheses of ``pool`` that could make more of ``walls`` agree in place of one of
+    ``transforms``, most promising first.
+
+    Replacing partition ``j``'s transform by a hypothesis gains at most the cells the
+    hypothesis makes agree that no partition explains, less the cells only ``j`` explained
+    and the hypothesis does not; a hypothesis is offered if that bound is positive for some
+    partition (the settle step computes the gain itself). Distinct hypotheses only (see
+    :data:`_ROTATION_STEP_DEG`); ordered by the bound, then as recorded.
+
+    Parameters
+    ----------
+    pool : sequence of RigidTransform
+        The hypotheses, as :class:`Recorded` kept them.
+    transforms : sequence of RigidTransform
+        The partitions' transforms.
+    walls : ndarray, shape (N, 2)
+        The map's occupied cells that count (isolated cells left out), ``(x, y)``.
+    index : ReferenceIndex
+        The reference.
+    threshold : float
+        Agreement threshold (cells).
+    """
+    if not pool or not transforms or walls.shape[0] == 0:
+        return []
+    agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
+    covered = np.count_nonzero(agree, axis=0)
+    unexplained = walls[covered == 0]
+    if unexplained.shape[0] == 0:
+        return []  # nothing to gain: no hypothesis can make more cells agree
+    distinct = _distinct(pool, walls.mean(axis=0))
+    # the gain is at most the cells a hypothesis explains that no partition does: those
+    # that explain none are passed over after a lookup of the unexplained cells alone
+    new = _counts(distinct, unexplained, index, threshold)
+    hopeful = [distinct[k] for k in np.flatnonzero(new > 0)]
+    new = new[new > 0]
+    alone = (agree & (covered == 1)).astype(np.float32)  # (P, N): cells only each explains
+    lost = alone.sum(axis=1)  # what each partition loses if replaced by nothing
+    bounds = np.empty(len(hopeful))
+    per_batch = max(1, _BATCH_CELLS // walls.shape[0])
+    for start in range(0, len(hopeful), per_batch):
+        rows = _agreement_rows(hopeful[start : start + per_batch], walls, index, threshold)
+        kept = rows.astype(np.float32) @ alone.T  # (k, P): counts, exact in float32
+        gains = new[start : start + rows.shape[0], None] + kept - lost[None, :]
+        bounds[start : start + rows.shape[0]] = gains.max(axis=1)
+    order = sorted(np.flatnonzero(bounds > 0).tolist(), key=lambda k: (-bounds[k], k))
+    return [hopeful[k] for k in order]
+
+
+def _counts(
+    transforms: Sequence[RigidTransform],
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> NDArray[np.intp]:
+    """How many of ``cells`` agree under each of ``transforms``."""
+    out = np.empty(len(transforms), dtype=np.intp)
+    per_batch = max(1, _BATCH_CELLS // cells.shape[0])
+    for start in range(0, len(transforms), per_batch):
+        rows = _agreement_rows(transforms[start : start + per_batch], cells, index, threshold)
+        out[start : start + rows.shape[0]] = np.count_nonzero(rows, axis=1)
+    return out
+
+
+def _distinct(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> list[RigidTransform]:
+    """The first of each group of hypotheses that put ``centre`` in the same cell at the
+    same half degree of rotation."""
+    angle = np.array([t.rotation for t in pool])
+    shift = np.array([(t.tx, t.ty) for t in pool])
+    scale = np.array([t.scale for t in pool])
+    cos, sin = scale * np.cos(angle), scale * np.sin(angle)
+    x = np.rint(cos * centre[0] - sin * centre[1] + shift[:, 0]).astype(np.int64)
+    y = np.rint(sin * centre[0] + cos * centre[1] + shift[:, 1]).astype(np.int64)
+    turn = np.rint(np.degrees(angle) / _ROTATION_STEP_DEG).astype(np.int64)
+    turn %= round(360.0 / _ROTATION_STEP_DEG)
+    seen: dict[tuple[int, int, int], RigidTransform] = {}
+    for t, key in zip(pool, zip(x.tolist(), y.tolist(), turn.tolist(), strict=True), strict=True):
+        seen.setdefault(key, t)
+    return list(seen.values())
+
+
+def _agreement_rows(
+    transforms: Sequence[RigidTransform],
+    walls: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> NDArray[np.bool_]:
+    """Which of ``walls`` agree under each of ``transforms``: shape ``(len(transforms), N)``,
+    in one lookup."""
+    n = walls.shape[0]
+    moved = np.empty((len(transforms) * n, 2))
+    for k, t in enumerate(transforms):
+        moved[k * n : (k + 1) * n] = t.apply(walls)
+    return index.occupied_agreement(moved, threshold).reshape(len(transforms), n)
