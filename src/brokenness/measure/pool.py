@@ -38,6 +38,9 @@ __all__ = ["Recorded", "offered"]
 #: half degree, are one: the first is kept (a partition's cells lie within a few hundred
 #: cells of the centre, where the two differ by about a cell at most).
 _ROTATION_STEP_DEG = 0.5
+#: Cells of each partition looked up first, to pass over the hypotheses that cannot gain
+#: in its place (an even sample; the others are looked up only for what is left).
+_PROBE_CELLS = 256
 #: Cells looked up at once (the agreement rows of a batch of hypotheses: bounded
 #: temporaries, whatever the pool).
 _BATCH_CELLS = 1 << 20
@@ -114,7 +117,19 @@ def offered(
     new = _counts(distinct, unexplained, index, threshold)
     hopeful = [distinct[k] for k in np.flatnonzero(new > 0)]
     new = new[new > 0]
-    alone = (agree & (covered == 1)).astype(np.float32)  # (P, N): cells only each explains
+    alone_mask = agree & (covered == 1)  # (P, N): the cells only each partition explains
+    # in place of partition j the gain is ``new`` less the cells only j explains that the
+    # hypothesis does not: an even sample of those cells that already misses ``new`` of them
+    # rules j out (exactly: the sample's misses are some of the misses)
+    possible = np.zeros(len(hopeful), dtype=bool)
+    for only_j in alone_mask:
+        cells = walls[only_j]
+        probe = cells[:: max(1, -(-cells.shape[0] // _PROBE_CELLS))]
+        misses = probe.shape[0] - _counts(hopeful, probe, index, threshold)
+        possible |= misses < new
+    hopeful = [h for h, keep in zip(hopeful, possible.tolist(), strict=True) if keep]
+    new = new[possible]
+    alone = alone_mask.astype(np.float32)
     lost = alone.sum(axis=1)  # what each partition loses if replaced by nothing
     bounds = np.empty(len(hopeful))
     per_batch = max(1, _BATCH_CELLS // walls.shape[0])
@@ -134,7 +149,9 @@ def _counts(
     threshold: float,
 ) -> NDArray[np.intp]:
     """How many of ``cells`` agree under each of ``transforms``."""
-    out = np.empty(len(transforms), dtype=np.intp)
+    out = np.zeros(len(transforms), dtype=np.intp)
+    if cells.shape[0] == 0:
+        return out
     per_batch = max(1, _BATCH_CELLS // cells.shape[0])
     for start in range(0, len(transforms), per_batch):
         rows = _agreement_rows(transforms[start : start + per_batch], cells, index, threshold)
