@@ -89,3 +89,39 @@ def test_offered_puts_the_most_promising_first(corner_index, halves) -> None:
 def test_offered_of_nothing(corner_index) -> None:
     assert offered([], [RigidTransform()], np.zeros((3, 2)), corner_index, THRESHOLD) == []
     assert offered([RigidTransform()], [RigidTransform()], np.zeros((0, 2)), corner_index, 2) == []
+
+
+def _brute_force(pool, transforms, walls, index, threshold):
+    """:func:`offered` by its definition: every distinct hypothesis looked up at every cell."""
+    from brokenness.measure.pool import _distinct
+
+    agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
+    covered = agree.sum(axis=0)
+    alone = agree & (covered == 1)
+    bounds = []
+    for h in _distinct(pool, walls.mean(axis=0)):
+        row = index.occupied_agreement(h.apply(walls), threshold)
+        new = np.count_nonzero(row & (covered == 0))
+        gains = [new - np.count_nonzero(only & ~row) for only in alone]
+        bounds.append((max(gains), h))
+    ranked = sorted(enumerate(bounds), key=lambda item: (-item[1][0], item[0]))
+    return [h for _, (bound, h) in ranked if bound > 0]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_offered_passes_over_only_what_cannot_gain(corner_index, halves, seed) -> None:
+    # the samples and the unexplained cells only pass over hypotheses that the whole map
+    # would rule out too: the same hypotheses, in the same order, as looking up every one
+    # at every cell
+    points, _, truth = halves
+    rng = np.random.default_rng(seed)
+    wrong = RigidTransform(0.0, 0.0, 120.0).compose(truth)
+    transforms = [RigidTransform(), wrong, RigidTransform(0.0, 2.5, 0.0).compose(truth)]
+    pool = [
+        RigidTransform(np.radians(rng.normal(0.0, 1.0)), *rng.normal(0.0, 3.0, 2)).compose(base)
+        for base in (RigidTransform(), wrong, truth)
+        for _ in range(20)
+    ]
+    rivals = offered(pool, transforms, points, corner_index, THRESHOLD)
+    assert rivals == _brute_force(pool, transforms, points, corner_index, THRESHOLD)
+    assert len(rivals) > 0
