@@ -22,7 +22,7 @@ cells agree wins, as the registration itself chooses.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -115,31 +115,39 @@ def offered(
     # the gain is at most the cells a hypothesis explains that no partition does: those
     # that explain none are passed over after a lookup of the unexplained cells alone
     new = _counts(distinct, unexplained, index, threshold)
-    hopeful = [distinct[k] for k in np.flatnonzero(new > 0)]
-    new = new[new > 0]
-    alone_mask = agree & (covered == 1)  # (P, N): the cells only each partition explains
-    # in place of partition j the gain is ``new`` less the cells only j explains that the
-    # hypothesis does not: an even sample of those cells that already misses ``new`` of them
-    # rules j out (exactly: the sample's misses are some of the misses)
-    possible = np.zeros(len(hopeful), dtype=bool)
-    for only_j in alone_mask:
+    alone = agree & (covered == 1)  # (P, N): the cells only each partition explains
+    hopeful = _possible(distinct, new, walls, alone, index, threshold)
+    candidates = [distinct[k] for k in hopeful]
+    bounds = np.empty(len(candidates))
+    only = alone.astype(np.float32)
+    lost = only.sum(axis=1)  # what each partition loses if replaced by nothing
+    for at, rows in _rows(candidates, walls, index, threshold):
+        kept = rows.astype(np.float32) @ only.T  # (k, P): counts, exact in float32
+        bounds[at] = (new[hopeful[at], None] + kept - lost[None, :]).max(axis=1)
+    order = sorted(np.flatnonzero(bounds > 0).tolist(), key=lambda k: (-bounds[k], k))
+    return [candidates[k] for k in order]
+
+
+def _possible(
+    transforms: Sequence[RigidTransform],
+    new: NDArray[np.intp],
+    walls: NDArray[np.float64],
+    alone: NDArray[np.bool_],
+    index: ReferenceIndex,
+    threshold: float,
+) -> NDArray[np.intp]:
+    """Indices of the ``transforms`` that may gain in place of some partition: in place of
+    partition ``j`` the gain is ``new`` less the cells only ``j`` explains (``alone[j]``) that
+    the hypothesis does not; an even sample of those cells that already misses ``new`` of
+    them rules ``j`` out (exactly: the sample's misses are some of the misses)."""
+    hopeful = np.flatnonzero(new > 0)
+    them = [transforms[k] for k in hopeful.tolist()]
+    possible = np.zeros(hopeful.size, dtype=bool)
+    for only_j in alone:
         cells = walls[only_j]
         probe = cells[:: max(1, -(-cells.shape[0] // _PROBE_CELLS))]
-        misses = probe.shape[0] - _counts(hopeful, probe, index, threshold)
-        possible |= misses < new
-    hopeful = [h for h, keep in zip(hopeful, possible.tolist(), strict=True) if keep]
-    new = new[possible]
-    alone = alone_mask.astype(np.float32)
-    lost = alone.sum(axis=1)  # what each partition loses if replaced by nothing
-    bounds = np.empty(len(hopeful))
-    per_batch = max(1, _BATCH_CELLS // walls.shape[0])
-    for start in range(0, len(hopeful), per_batch):
-        rows = _agreement_rows(hopeful[start : start + per_batch], walls, index, threshold)
-        kept = rows.astype(np.float32) @ alone.T  # (k, P): counts, exact in float32
-        gains = new[start : start + rows.shape[0], None] + kept - lost[None, :]
-        bounds[start : start + rows.shape[0]] = gains.max(axis=1)
-    order = sorted(np.flatnonzero(bounds > 0).tolist(), key=lambda k: (-bounds[k], k))
-    return [hopeful[k] for k in order]
+        possible |= probe.shape[0] - _counts(them, probe, index, threshold) < new[hopeful]
+    return hopeful[possible]
 
 
 def _counts(
@@ -150,13 +158,30 @@ def _counts(
 ) -> NDArray[np.intp]:
     """How many of ``cells`` agree under each of ``transforms``."""
     out = np.zeros(len(transforms), dtype=np.intp)
-    if cells.shape[0] == 0:
-        return out
-    per_batch = max(1, _BATCH_CELLS // cells.shape[0])
-    for start in range(0, len(transforms), per_batch):
-        rows = _agreement_rows(transforms[start : start + per_batch], cells, index, threshold)
-        out[start : start + rows.shape[0]] = np.count_nonzero(rows, axis=1)
+    for at, rows in _rows(transforms, cells, index, threshold):
+        out[at] = np.count_nonzero(rows, axis=1)
     return out
+
+
+def _rows(
+    transforms: Sequence[RigidTransform],
+    cells: NDArray[np.float64],
+    index: ReferenceIndex,
+    threshold: float,
+) -> Iterator[tuple[slice, NDArray[np.bool_]]]:
+    """Which of ``cells`` agree under each of ``transforms``, in batches of about
+    :data:`_BATCH_CELLS` lookups: ``(the batch's slice of transforms, its rows)``."""
+    n = cells.shape[0]
+    if n == 0:
+        return
+    per_batch = max(1, _BATCH_CELLS // n)
+    for start in range(0, len(transforms), per_batch):
+        batch = transforms[start : start + per_batch]
+        moved = np.empty((len(batch) * n, 2))
+        for k, t in enumerate(batch):
+            moved[k * n : (k + 1) * n] = t.apply(cells)
+        rows = index.occupied_agreement(moved, threshold).reshape(len(batch), n)
+        yield slice(start, start + len(batch)), rows
 
 
 def _distinct(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> list[RigidTransform]:
@@ -174,18 +199,3 @@ def _distinct(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> li
     for t, key in zip(pool, zip(x.tolist(), y.tolist(), turn.tolist(), strict=True), strict=True):
         seen.setdefault(key, t)
     return list(seen.values())
-
-
-def _agreement_rows(
-    transforms: Sequence[RigidTransform],
-    walls: NDArray[np.float64],
-    index: ReferenceIndex,
-    threshold: float,
-) -> NDArray[np.bool_]:
-    """Which of ``walls`` agree under each of ``transforms``: shape ``(len(transforms), N)``,
-    in one lookup."""
-    n = walls.shape[0]
-    moved = np.empty((len(transforms) * n, 2))
-    for k, t in enumerate(transforms):
-        moved[k * n : (k + 1) * n] = t.apply(walls)
-    return index.occupied_agreement(moved, threshold).reshape(len(transforms), n)
