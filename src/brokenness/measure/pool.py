@@ -12,12 +12,14 @@ call, within a cell, while the partition holding it stood at a twin).
 
 So the measure remembers every hypothesis (:class:`Recorded`, a registrar that records
 what it returns; the relocation adds its placements, which no registration returns), and
-the settle step offers those that could make the map agree more
-(:func:`offered`) to every partition as rivals, judged by the count alone
-(``settle(..., by_count=True)``): the number of partitions is not at stake there (a rival
-that would empty a partition must still be significant, and the pass is undone if the
-tests of real partitions then drop one), so the placement under which more of the map's
-cells agree wins, as the registration itself chooses.
+once a map is measured, offers those that could make it agree more (:func:`offered`) to
+every partition as rivals of the settle step, judged by the count alone
+(``settle(..., by_count=True)``). Neither the degree nor the verdict is at stake there: a
+rival that would empty a partition must still be significant, and the pass is undone if a
+partition is then dropped or the map is no longer measured
+(:func:`~brokenness.measure.recursion._rechosen`). So of two placements of a partition
+already counted, the one under which more of the map's cells agree wins, as the
+registration itself chooses.
 """
 
 from __future__ import annotations
@@ -60,6 +62,8 @@ class Recorded:
         self.uses_free_space = registrar.uses_free_space
 
     def __getattr__(self, name: str) -> Any:
+        if name == "registrar":  # not set yet (a copy being made): no recursion
+            raise AttributeError(name)
         return getattr(self.registrar, name)
 
     def prepare_reference(self, reference_states: Any) -> Any:

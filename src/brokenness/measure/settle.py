@@ -164,9 +164,9 @@ def settle(
         :func:`~brokenness.measure.evidence.free_space` of ``found``, if already made (made
         here when a rival needs it).
     by_count : bool, optional
-        Take a rival that empties no partition for any gain of the count (the last pass of
-        the settle step, :mod:`~brokenness.measure.pool`: the number of partitions is not
-        at stake); a rival that empties one must still be significant.
+        Take a rival that empties no partition for any gain of the count (the measure's
+        last pass, :mod:`~brokenness.measure.pool`: neither the degree nor the verdict is
+        at stake there); a rival that empties one must still be significant.
 
     Returns
     -------
