@@ -6,9 +6,10 @@ hypotheses, and the stage that asked keeps the best one for the cells it registe
 hypothesis that was second there, or that was registered on cells of several parts, may
 still be the best transform of a partition found later: a part held at a twin of its room
 (or as a compromise of two parts) is often exactly such a case, its true transform found by
-an earlier registration of cells that were not yet its own (on the simulated maps of the
-realistic benchmark traced, every part's true transform was among the hypotheses of the
-call, within a cell, while the partition holding it stood at a twin).
+an earlier registration of cells that were not yet its own (of four failing simulated maps
+of the realistic benchmark traced, two had every part's true transform among the hypotheses
+of the call, within a cell, the other two all but one part's, while a partition held a
+part at a twin).
 
 So the measure remembers every hypothesis (:class:`Recorded`, a registrar that records
 what it returns; the relocation adds its placements, which no registration returns), and
