@@ -51,7 +51,7 @@ from ..masking.distance import beyond
 from ..transform import RigidTransform
 from .partitions import Found, owners
 from .support import SUPPORT_RADIUS, SUPPORT_SHARE, window_counts
-from .views import isolated_points
+from .views import isolated_points, not_isolated
 
 __all__ = [
     "MAP_RATIO",
@@ -524,7 +524,7 @@ def wall_contradiction(
     if not assigned.any():
         return WallContradiction(0, 0, chance)
     # specks of noise are not walls (the registration hides them too)
-    walls = ~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))
+    walls = not_isolated(points)
     lost = walls & ~assigned
     if lost.any():  # the partition of the nearest assigned cell
         _, nearest = cKDTree(take_rows(points, assigned)).query(take_rows(points, lost))

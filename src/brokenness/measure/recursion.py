@@ -165,8 +165,8 @@ from .support import occupied_around
 from .views import (
     candidates_of,
     exhausted,
-    isolated_points,
     moving_remainder,
+    not_isolated,
     occupied_count,
     prepared_reference,
     walls_connected,
@@ -561,7 +561,7 @@ def _rechosen(
     returned) if a partition is dropped or the map is no longer measured.
     """
     points, index, settings = context.points, context.index, context.settings
-    walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
+    walls = points[not_isolated(points)]
     transforms = [f.transform for f in found]
     rivals = offered(hypotheses, transforms, walls, index, settings.threshold)
     if not rivals:

@@ -94,7 +94,7 @@ from .options import Settings
 from .partitions import Found, merge_target, reassign
 from .recovery import SUPPORT_SHARE
 from .refine import refit_transform
-from .views import isolated_points
+from .views import not_isolated
 
 __all__ = ["EXPLAINED", "MIN_TILE_CELLS", "TILE_SIDE", "settle"]
 
@@ -179,7 +179,7 @@ def settle(
     threshold = settings.threshold
     transforms = [f.transform for f in found]
     # specks of noise are no part's walls: they neither pull a refit nor count as explained
-    walls = points[~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))]
+    walls = points[not_isolated(points)]
     agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
     seeds: list[int] = []
     candidates: list[RigidTransform] = []

@@ -25,6 +25,7 @@ __all__ = [
     "isolated_cells",
     "isolated_points",
     "moving_remainder",
+    "not_isolated",
     "occupied_count",
     "reference_states",
     "remainder_cells",
@@ -187,6 +188,12 @@ def isolated_cells(occupied: NDArray[np.bool_]) -> NDArray[np.bool_]:
         borderType=cv2.BORDER_CONSTANT,
     )
     return occupied & (count == 1)
+
+
+def not_isolated(points: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Which of the map's occupied cells ``points`` (``(x, y)``, whole cells) are walls, not
+    specks of noise: the complement of :func:`isolated_points` at them."""
+    return ~isolated_points(points[:, 1].astype(np.intp), points[:, 0].astype(np.intp))
 
 
 def isolated_points(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[np.bool_]:
