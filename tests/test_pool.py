@@ -8,7 +8,7 @@ from _breaking import move_about
 
 from brokenness import OccupancyMap, RigidTransform
 from brokenness.masking import cell_points
-from brokenness.measure.pool import Recorded, offered
+from brokenness.measure.pool import Recorded, distinct_indices, offered, recorded_transforms
 from brokenness.registration.base import Candidate
 
 THRESHOLD = 2.0
@@ -36,14 +36,15 @@ class _Fixed:
 
 
 def test_recorded_remembers_every_hypothesis_in_order() -> None:
-    pool: list[RigidTransform] = []
+    pool: list[tuple[Candidate, ...]] = []
     inner = _Fixed()
     recorded = Recorded(inner, pool)
     assert recorded.prepare_reference(None) == "prepared"
     first = recorded.candidates("prepared", None, 2)
     second = recorded.candidates("prepared", None, 2)
-    assert [c.transform for c in first + second] == pool
-    assert len(pool) == 4 and inner.calls == 2 and recorded.registrar is inner
+    assert pool == [tuple(first), tuple(second)]  # one group a registration
+    assert recorded_transforms(pool) == [c.transform for c in first + second]
+    assert inner.calls == 2 and recorded.registrar is inner
     # the registrar's own attributes, the optional ones too
     assert (recorded.name, recorded.uses_free_space, recorded.accepts_cells) == (
         "fixed",
@@ -93,13 +94,11 @@ def test_offered_of_nothing(corner_index) -> None:
 
 def _brute_force(pool, transforms, walls, index, threshold):
     """:func:`offered` by its definition: every distinct hypothesis looked up at every cell."""
-    from brokenness.measure.pool import _distinct
-
     agree = np.stack([index.occupied_agreement(t.apply(walls), threshold) for t in transforms])
     covered = agree.sum(axis=0)
     alone = agree & (covered == 1)
     bounds = []
-    for h in _distinct(pool, walls.mean(axis=0)):
+    for h in [pool[k] for k in distinct_indices(pool, walls.mean(axis=0))]:
         row = index.occupied_agreement(h.apply(walls), threshold)
         new = np.count_nonzero(row & (covered == 0))
         gains = [new - np.count_nonzero(only & ~row) for only in alone]

@@ -16,6 +16,7 @@ import pytest
 from _breaking import SETTINGS, break_map, move_about
 
 import brokenness.measure.recovery as recovery
+import brokenness.measure.recursion as recursion
 import brokenness.measure.settle as settle_module
 from brokenness import OccupancyMap, RigidTransform, compute_brokenness, load_map
 from brokenness.masking import ReferenceIndex, cell_points
@@ -23,6 +24,7 @@ from brokenness.measure.context import MapContext
 from brokenness.measure.evidence import ClearFree
 from brokenness.measure.partitions import Found, consolidate, reassign
 from brokenness.measure.recovery import agreement_support
+from brokenness.registration.base import Candidate
 
 DATA = Path(__file__).parent / "data"
 
@@ -74,10 +76,25 @@ def test_a_partition_lost_to_coincidences_is_recovered(building, max_angle, monk
     assert result.degree == 5
     assert max(_errors(result, truths)) < 3.0  # six true partitions, none twice
     assert result.unassigned_cells < 0.02 * result.occupied_cells
-    # no suspect and no split of settle (which finds the lost part too): the recursion alone
+    # no suspect, no split of settle and no pass over the call's hypotheses (each finds the
+    # lost part too): the recursion alone
     monkeypatch.setattr(recovery, "SUPPORT_SHARE", 0.0)
     monkeypatch.setattr(settle_module, "_best_split", lambda *args: None)
+    monkeypatch.setattr(recursion, "pooled_partitions", lambda found, *args: found)
     assert compute_brokenness(broken, building).degree == 4
+
+
+@pytest.mark.parametrize("max_angle", [20.0, 25.0])
+def test_the_lost_partition_is_among_the_calls_hypotheses(building, max_angle, monkeypatch):
+    """Without the recovery's suspects and settle's split, the pass over the call's
+    hypotheses (``recovery.pooled_partitions``) finds the lost part: its true transform was
+    a hypothesis of an earlier registration (without the pass, the degree is 4: above)."""
+    broken, truths = _three_by_two(building, max_angle)
+    monkeypatch.setattr(recovery, "SUPPORT_SHARE", 0.0)
+    monkeypatch.setattr(settle_module, "_best_split", lambda *args: None)
+    result = compute_brokenness(broken, building)
+    assert result.degree == 5
+    assert max(_errors(result, truths)) < 3.0
 
 
 def test_recovery_adds_nothing_to_the_reference_against_itself(building, monkeypatch):
@@ -326,3 +343,62 @@ def test_a_recovery_round_is_not_repeated_when_the_tests_change_nothing(monkeypa
     assert result.degree == 2 and len(rounds) == 1
     rounds.clear()
     assert compute_brokenness(reference, reference).degree == 0 and len(rounds) == 1
+
+
+@pytest.fixture(scope="module")
+def shifted_right(corner, corner_index):
+    """The corner with its right part shifted by 12 cells along x (a pure-shift bump), and
+    a partition of the left part's transform holding the cells that agree under it:
+    ``(context, found, (left_t, right_t))``."""
+    index = corner_index
+    right = np.zeros(corner.shape, bool)
+    right[:, 360:] = True
+    broken, truths = break_map(
+        corner, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
+    )
+    points = cell_points(broken.occupied)
+    agree = index.occupied_agreement(truths[0].apply(points), SETTINGS.threshold)
+    found = [Found(truths[0], np.flatnonzero(agree), 1.0, 0.0)]
+    around = recovery.occupied_around(points, broken.shape)
+    context = MapContext(points, broken, index, SETTINGS, around, ClearFree(broken, 2.0))
+    return context, found, truths
+
+
+def _junk(k: int) -> tuple[Candidate, ...]:
+    """``k`` placements far off the reference's walls, as a registration's group."""
+    rng = np.random.default_rng(k)
+    return tuple(
+        Candidate(RigidTransform(float(a), float(x), float(y)), 0.5)
+        for a, x, y in zip(
+            rng.uniform(0.3, 2.8, k),
+            rng.uniform(-300, 300, k),
+            rng.uniform(-300, 300, k),
+            strict=True,
+        )
+    )
+
+
+def test_a_part_whose_transform_is_among_the_hypotheses_is_added(shifted_right) -> None:
+    """The pass over the call's hypotheses (``pooled_partitions``): the shifted part's true
+    transform, one hypothesis of a registration among others, becomes a partition holding
+    the part's cells; the left partition keeps its own."""
+    context, found, (left_t, right_t) = shifted_right
+    pool = [_junk(8), (*_junk(5), Candidate(right_t, 0.9)), (Candidate(left_t, 1.0),)]
+    grown = recovery.pooled_partitions(found, context, pool)
+    assert len(grown) == 2
+    new = next(g for g in grown if g.transform is right_t)
+    xs = context.points[new.members, 0]
+    assert np.mean(xs >= 360 + 20 + 12) > 0.9  # the right part's cells (padded, shifted)
+    kept = next(g for g in grown if g.transform is left_t)
+    assert np.mean(context.points[kept.members, 0] < 360 + 20) > 0.9
+
+
+def test_no_partition_is_added_from_hypotheses_that_hold_none(shifted_right) -> None:
+    """Placements off the walls, and the left partition's own transform found again, add
+    nothing; nor does a placement of the right part turned by 90 degrees (it takes cells by
+    coincidence only)."""
+    context, found, (left_t, right_t) = shifted_right
+    turned = move_about(tuple(context.points.mean(axis=0)), 90.0, (0.0, 0.0)).compose(right_t)
+    pool = [_junk(8), (*_junk(5), Candidate(turned, 0.9)), (Candidate(left_t, 1.0),)]
+    assert recovery.pooled_partitions(found, context, pool) == found
+    assert recovery.pooled_partitions(found, context, []) == found

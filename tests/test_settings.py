@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 from _breaking import SETTINGS
@@ -42,3 +43,17 @@ def test_beyond_chance_when_chance_is_small() -> None:
     assert SETTINGS.beyond_chance(50, 0.0) == 1  # no chance: one cell is evidence
     assert SETTINGS.beyond_chance(50, 1.0) == 51
     assert math.isclose(0.096**9, binom.sf(8, 9, 0.096))
+
+
+@pytest.mark.parametrize("tests", [2, 10, 1000, 50_000])
+def test_for_tests_divides_the_tail_among_the_tests(tests: int) -> None:
+    # Bonferroni: the one-sided normal tail of the corrected significance, times the tests,
+    # is the tail of the stopping rule's own
+    def tail(z: float) -> float:
+        return 0.5 * math.erfc(z / math.sqrt(2.0))
+
+    strict = SETTINGS.for_tests(tests)
+    assert strict.significance > SETTINGS.significance
+    assert tail(strict.significance) * tests == pytest.approx(tail(SETTINGS.significance), rel=1e-9)
+    assert replace(strict, significance=SETTINGS.significance) == SETTINGS  # nothing else
+    assert SETTINGS.for_tests(1) is SETTINGS and SETTINGS.for_tests(0) is SETTINGS

@@ -12,9 +12,12 @@ of the call, within a cell, the other two all but one part's, while a partition 
 part at a twin).
 
 So the measure remembers every hypothesis (:class:`Recorded`, a registrar that records
-what it returns; the relocation adds its placements, which no registration returns), and
-once a map is measured, offers those that could make it agree more (:func:`offered`) to
-every partition as rivals of the settle step, judged by the count alone
+what it returns, one group a registration; the relocation adds its placements, which no
+registration returns), and once a map is measured, counts them as new partitions
+(:func:`~brokenness.measure.recovery.pooled_partitions`: a part shifted along its
+neighbour's walls, held by that neighbour, whose true transform an earlier registration
+returned), then offers those that could make it agree more (:func:`offered`) to every
+partition as rivals of the settle step, judged by the count alone
 (``settle(..., by_count=True)``). Neither the degree nor the verdict is at stake there: a
 rival that would empty a partition must still be significant, and the pass is undone if a
 partition is then dropped or the map is no longer measured
@@ -35,7 +38,7 @@ from ..masking import ReferenceIndex
 from ..registration.base import Candidate, Registrar
 from ..transform import RigidTransform
 
-__all__ = ["Recorded", "offered"]
+__all__ = ["Recorded", "counts", "distinct_indices", "offered", "recorded_transforms"]
 
 #: Hypotheses that put the map's centre within the same cell, at rotations within the same
 #: half degree, are one: the first is kept (a partition's cells lie within a few hundred
@@ -50,13 +53,14 @@ _BATCH_CELLS = 1 << 20
 
 
 class Recorded:
-    """A registrar that remembers every hypothesis it returns, in ``pool`` (in order).
+    """A registrar that remembers every hypothesis it returns, in ``pool``: the hypotheses of
+    each call as one group (the rivals of one another: a registration's chance), in order.
 
     Everything but :meth:`candidates` is the wrapped ``registrar``'s own (its optional
     attributes too), so the measure drives it as it would the registrar.
     """
 
-    def __init__(self, registrar: Registrar, pool: list[RigidTransform]) -> None:
+    def __init__(self, registrar: Registrar, pool: list[tuple[Candidate, ...]]) -> None:
         self.registrar = registrar
         self._pool = pool
         self.name = registrar.name
@@ -74,10 +78,16 @@ class Recorded:
     def candidates(
         self, prepared_reference: Any, moving_states: Any, max_candidates: int
     ) -> list[Candidate]:
-        """The wrapped registrar's hypotheses, recorded."""
+        """The wrapped registrar's hypotheses, recorded (one group a call)."""
         out = self.registrar.candidates(prepared_reference, moving_states, max_candidates)
-        self._pool.extend(c.transform for c in out)
+        if out:
+            self._pool.append(tuple(out))
         return out
+
+
+def recorded_transforms(pool: Sequence[Sequence[Candidate]]) -> list[RigidTransform]:
+    """The transforms of every group of ``pool`` (as :class:`Recorded` keeps them), in order."""
+    return [c.transform for group in pool for c in group]
 
 
 def offered(
@@ -116,10 +126,10 @@ def offered(
     unexplained = walls[covered == 0]
     if unexplained.shape[0] == 0:
         return []  # nothing to gain: no hypothesis can make more cells agree
-    distinct = _distinct(pool, walls.mean(axis=0))
+    distinct = [pool[k] for k in distinct_indices(pool, walls.mean(axis=0))]
     # the gain is at most the cells a hypothesis explains that no partition does: those
     # that explain none are passed over after a lookup of the unexplained cells alone
-    new = _counts(distinct, unexplained, index, threshold)
+    new = counts(distinct, unexplained, index, threshold)
     alone = agree & (covered == 1)  # (P, N): the cells only each partition explains
     hopeful = _possible(distinct, new, walls, alone, index, threshold)
     candidates = [distinct[k] for k in hopeful]
@@ -151,11 +161,11 @@ def _possible(
     for only_j in alone:
         cells = walls[only_j]
         probe = cells[:: max(1, -(-cells.shape[0] // _PROBE_CELLS))]
-        possible |= probe.shape[0] - _counts(them, probe, index, threshold) < new[hopeful]
+        possible |= probe.shape[0] - counts(them, probe, index, threshold) < new[hopeful]
     return hopeful[possible]
 
 
-def _counts(
+def counts(
     transforms: Sequence[RigidTransform],
     cells: NDArray[np.float64],
     index: ReferenceIndex,
@@ -189,9 +199,11 @@ def _rows(
         yield slice(start, start + len(batch)), rows
 
 
-def _distinct(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> list[RigidTransform]:
-    """The first of each group of hypotheses that put ``centre`` in the same cell at the
-    same half degree of rotation."""
+def distinct_indices(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> list[int]:
+    """The index of the first of each group of hypotheses of ``pool`` that put ``centre`` in
+    the same cell at the same half degree of rotation, in order."""
+    if not pool:
+        return []
     angle = np.array([t.rotation for t in pool])
     shift = np.array([(t.tx, t.ty) for t in pool])
     scale = np.array([t.scale for t in pool])
@@ -200,7 +212,7 @@ def _distinct(pool: Sequence[RigidTransform], centre: NDArray[np.float64]) -> li
     y = np.rint(sin * centre[0] + cos * centre[1] + shift[:, 1]).astype(np.int64)
     turn = np.rint(np.degrees(angle) / _ROTATION_STEP_DEG).astype(np.int64)
     turn %= round(360.0 / _ROTATION_STEP_DEG)
-    seen: dict[tuple[int, int, int], RigidTransform] = {}
-    for t, key in zip(pool, zip(x.tolist(), y.tolist(), turn.tolist(), strict=True), strict=True):
-        seen.setdefault(key, t)
+    seen: dict[tuple[int, int, int], int] = {}
+    for k, key in enumerate(zip(x.tolist(), y.tolist(), turn.tolist(), strict=True)):
+        seen.setdefault(key, k)
     return list(seen.values())

@@ -58,7 +58,7 @@ the recursion:
    replaces its twin, :func:`_kept`);
 5. if no hypothesis passes step 4's count (or, for the regions placed last, is counted
    on it), counts the best hypotheses of step 3 again over the whole map
-   (:meth:`_Search.taken_partition`): the cells a new partition of the hypothesis would
+   (:func:`_taken_partition`): the cells a new partition of the hypothesis would
    *take* (:func:`taken_cells`: they agree coherently under it, and belong to no partition
    or have more cells of their neighbourhood agreeing under it than under their
    partition's transform) must pass the stopping rule over all the map's cells, with
@@ -106,7 +106,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, NamedTuple
 
 import cv2
@@ -124,6 +124,7 @@ from .hypotheses import RIVAL_QUANTILE, best_hypothesis, rival_chance, rivals
 from .options import Settings
 from .partitions import Found, merge_target, owners, reassign, with_fringe
 from .placement import free_placement, placements
+from .pool import counts, distinct_indices, recorded_transforms
 from .refine import refit_transform
 from .support import (
     SUPPORT_RADIUS,
@@ -568,24 +569,14 @@ def recover(
             if new is not None:
                 break
         rivals += [shortfall.transform for shortfall in short if shortfall.rival]
-        grown, before = None, None
-        for shortfall in short if new is None else ():  # counted over the whole map instead
-            taken = search.taken_partition(found, shortfall)
-            if taken is None:
-                continue
-            grown = reassign([*found, taken], points, index, threshold, min_cells)
-            if not _kept(found, grown, taken):
-                continue
-            if before is None:
-                before = contradiction(found, points, context.clear, index)
-            if _clears_free_space(before, grown, context):
-                new = taken
+        if new is None:  # counted over the whole map instead
+            grown = _taken_over_map(context, found, short)
+            if grown is None:
                 break
-        if new is None:
-            break
-        if grown is None:
-            new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
-            grown = reassign([*found, new], points, index, threshold, min_cells)
+            found = grown
+            continue
+        new = Found(new.transform, new.members, new.confidence, time.perf_counter() - t0)
+        grown = reassign([*found, new], points, index, threshold, min_cells)
         if not _kept(found, grown, new):
             break  # it kept too few cells once every cell went to its best partition
         found = grown
@@ -595,6 +586,200 @@ def recover(
         doubtful = evidence.doubtful(settings.significance)
         rivals += _relocations(search, found, None, doubtful, owned, place_every=False)
     return found, rivals
+
+
+class _Taking:
+    """What a new partition would take from the partitions ``found`` (:func:`taken_cells`),
+    each transform's count made once."""
+
+    def __init__(self, context: MapContext, found: list[Found]) -> None:
+        self.context = context
+        points, threshold = context.points, context.settings.threshold
+        self.owner = owners(found, points.shape[0])
+        self.owner_count = _owner_counts(found, self.owner, points, context.index, threshold)
+        self._counts: dict[RigidTransform, int] = {}
+
+    def cells(self, transform: RigidTransform) -> NDArray[np.bool_]:
+        """The cells a new partition of ``transform`` would take."""
+        context = self.context
+        return taken_cells(
+            transform,
+            self.owner,
+            self.owner_count,
+            context.points,
+            context.index,
+            context.settings.threshold,
+            context.around,
+        )
+
+    def count(self, transform: RigidTransform) -> int:
+        """How many cells a new partition of ``transform`` would take."""
+        if transform not in self._counts:
+            self._counts[transform] = int(np.count_nonzero(self.cells(transform)))
+        return self._counts[transform]
+
+    def takeable(self) -> NDArray[np.bool_]:
+        """The cells some transform could take: of no partition, or with fewer cells of
+        their neighbourhood agreeing under their partition's transform than it holds (a
+        cell is taken only where more agree under the new one)."""
+        everywhere = neighbourhood_counts(np.ones_like(self.owner, bool), self.context.points)
+        return (self.owner < 0) | (self.owner_count < everywhere)
+
+
+def _taken_partition(
+    context: MapContext, found: list[Found], shortfall: _Shortfall, taking: _Taking
+) -> Found | None:
+    """The partition of the cells the shortfall's transform would *take* from ``found``
+    (``taking``'s :func:`taken_cells`), if they pass the stopping rule against what the
+    other hypotheses of the shortfall would take.
+
+    A part shifted along a corridor against a partition already found (a pure-shift
+    bump) shares its walls parallel to the shift with that partition: they agree under
+    both transforms and stay with the partition, so few of the part's cells are
+    suspects, and their count fails although the hypothesis is the part's true
+    transform. Counted over the whole map instead, the part's own region is what the
+    hypothesis takes: there the cells around agree under it more than under their
+    partition's transform. Chance is what the rival hypotheses of the same suspects
+    (those that put them elsewhere) would take, at the upper quartile
+    (:data:`~brokenness.measure.hypotheses.RIVAL_QUANTILE`), over all the map's cells.
+    """
+    settings, pts, index = context.settings, context.points, context.index
+    p0 = index.chance_agreement(settings.threshold)
+    transform, candidates = shortfall.transform, shortfall.candidates
+    loose = settings.loose
+    taken = taking.cells(transform)
+    k = int(np.count_nonzero(taken))
+    if k < settings.min_cells:
+        return None
+    n = pts.shape[0]
+    shares = [
+        taking.count(c.transform) / n
+        for c, _ in rivals(candidates, pts[:: max(1, n // 200)], transform, loose)
+    ]
+    p_take = float(np.quantile(shares, RIVAL_QUANTILE)) if shares else p0
+    chance, _, needed = settings.needed(n, min(p_take, p0))
+    if k < needed:
+        return None
+    left = np.flatnonzero(taken)
+    members = left[
+        with_fringe(transform, take_rows(pts, left), np.ones(left.size, bool), index, loose)
+    ]
+    if merge_target(found, take_rows(pts, members), index, loose) is not None:
+        return None
+    return Found(transform, members, (k - chance) / k, 0.0)
+
+
+def _taken_over_map(
+    context: MapContext,
+    found: list[Found],
+    shortfalls: Sequence[_Shortfall],
+    taking: _Taking | None = None,
+    own_evidence: bool = False,
+) -> list[Found] | None:
+    """``found`` grown by the partition of the first of ``shortfalls`` that passes step 5
+    (:func:`_taken_partition`, then :func:`_kept` and :func:`_clears_free_space`; with
+    ``own_evidence``, its own free space must also cross the reference's walls significantly
+    less often than chance), every cell given to its best partition; ``None`` if none
+    passes. ``taking`` is what a new partition would take from ``found``, if made."""
+    if not shortfalls:
+        return None
+    points, index, settings = context.points, context.index, context.settings
+    taking = _Taking(context, found) if taking is None else taking
+    before = None
+    for shortfall in shortfalls:
+        taken = _taken_partition(context, found, shortfall, taking)
+        if taken is None:
+            continue
+        grown = reassign([*found, taken], points, index, settings.threshold, settings.min_cells)
+        if not _kept(found, grown, taken):
+            continue
+        if before is None:
+            before = contradiction(found, points, context.clear, index)
+        if not _clears_free_space(before, grown, context):
+            continue
+        if own_evidence:
+            after = contradiction(grown, points, context.clear, index)
+            new = next(q for q, g in enumerate(grown) if g.transform is taken.transform)
+            if not after.upper_ratio(settings.significance, new) < 1.0:
+                continue
+        return grown
+    return None
+
+
+def pooled_partitions(
+    found: list[Found], context: MapContext, pool: Sequence[Sequence[Candidate]]
+) -> list[Found]:
+    """``found`` grown by the partitions that the call's hypotheses hold (``pool``, one group
+    a registration, :class:`~brokenness.measure.pool.Recorded`): step 5's count over the
+    whole map (:func:`_taken_over_map`), each hypothesis with the other hypotheses of its
+    registration as the rivals of its chance, as the recovery counts its searches' best.
+
+    A part shifted a few cells along its neighbour's walls (a pure-shift bump), or whose
+    cells the partitions found before it split among them, leaves few suspects, too few to
+    register; its true transform is often among the hypotheses of an earlier registration
+    of cells that were not yet its own. Since many hypotheses are tried here, and the best
+    kept, each test is made at the significance of all the call's distinct hypotheses at
+    once (:meth:`~brokenness.measure.options.Settings.for_tests`), and a partition is added
+    only if its own free space crosses the reference's walls significantly less often than
+    chance (at that significance: a placement of cells that fit by coincidence puts their
+    free space on walls about as often as chance).
+
+    The hypotheses tried in a round are the ``max_candidates`` that would take the most
+    cells (:func:`taken_cells`), of the ``4 max_candidates`` that make the most of an even
+    sample of the cells they could take agree (:func:`_pooled_shortfalls`).
+    """
+    settings = context.settings
+    tests = len(distinct_indices(recorded_transforms(pool), context.points.mean(axis=0)))
+    context = replace(context, settings=settings.for_tests(tests))
+    while found and len(found) < settings.max_partitions:
+        taking = _Taking(context, found)
+        shortfalls = _pooled_shortfalls(taking, pool, found)
+        grown = _taken_over_map(context, found, shortfalls, taking, own_evidence=True)
+        if grown is None:
+            break
+        found = grown
+    return found
+
+
+#: Cells that a new partition could take looked up at most (an even sample of them), to
+#: rank the call's hypotheses before their cells taken are counted: enough that a part's
+#: true transform, which makes hundreds of its part's cells agree, stands out of chance.
+_PROBE_TAKEABLE = 4096
+#: The hypotheses ranked first on that sample whose cells taken are counted, as a multiple
+#: of the ``max_candidates`` tried (the count is a millisecond each on the largest maps).
+_COUNTED_PER_TRIED = 4
+
+
+def _pooled_shortfalls(
+    taking: _Taking, pool: Sequence[Sequence[Candidate]], found: list[Found]
+) -> list[_Shortfall]:
+    """The distinct hypotheses of ``pool`` to try as new partitions (:func:`pooled_partitions`),
+    the most cells taken first (ties in the pool's order), each with its registration's
+    group as its rivals. A hypothesis that puts the map where a partition does is that
+    partition (:func:`_new_ones`); the others are ranked by how many of an even sample of
+    the cells some hypothesis could take (:meth:`_Taking.takeable`) they make agree, and of
+    the first ``_COUNTED_PER_TRIED max_candidates``, the ``max_candidates`` that take the
+    most cells, at least the smallest partition's, are returned."""
+    context = taking.context
+    points, index, settings = context.points, context.index, context.settings
+    takeable = taking.takeable()
+    if np.count_nonzero(takeable) < settings.min_cells:
+        return []
+    groups = [group for group in pool for _ in group]
+    flat = recorded_transforms(pool)
+    distinct = [Candidate(flat[k], 1.0) for k in distinct_indices(flat, points.mean(axis=0))]
+    position = {id(t): k for k, t in enumerate(flat)}
+    fresh = [position[id(c.transform)] for c in _new_ones(distinct, found, points, settings.loose)]
+    probe = points[takeable]
+    probe = probe[:: max(1, -(-probe.shape[0] // _PROBE_TAKEABLE))]
+    agreeing = counts([flat[k] for k in fresh], probe, index, settings.threshold)
+    ranked = sorted(range(len(fresh)), key=lambda q: (-agreeing[q], q))
+    cells = [
+        (taking.count(flat[fresh[q]]), fresh[q])
+        for q in ranked[: _COUNTED_PER_TRIED * settings.max_candidates]
+    ]
+    kept = sorted((-k, at) for k, at in cells if k >= settings.min_cells)
+    return [_Shortfall(flat[at], tuple(groups[at])) for _, at in kept[: settings.max_candidates]]
 
 
 def _kept(found: list[Found], grown: list[Found], new: Found) -> bool:
@@ -850,7 +1035,7 @@ class _Search:
         ``sources`` (masks over the map's cells), those of each source registered alone, or,
         if it is ``placed``, the placements of its cells (:meth:`placed`); they are counted
         on its cells either way. A step that is not ``counted`` returns its best hypothesis
-        as a shortfall at once: it is counted over the whole map (:meth:`taken_partition`)."""
+        as a shortfall at once: it is counted over the whole map (:func:`_taken_partition`)."""
         cells, sources, placed = step.cells, step.sources, step.placed
         settings = self.settings
         n = int(np.count_nonzero(cells))
@@ -907,51 +1092,6 @@ class _Search:
         if merge_target(found, take_rows(pts, members), self.index, settings.loose) is not None:
             return None, None  # an existing partition's transform, not a lost one
         return Found(transform, members, (k - chance) / k, 0.0), None
-
-    def taken_partition(self, found: list[Found], shortfall: _Shortfall) -> Found | None:
-        """The partition of the cells the shortfall's transform would *take*
-        (:func:`taken_cells`), if they pass the stopping rule against what the other
-        hypotheses of the shortfall would take.
-
-        A part shifted along a corridor against a partition already found (a pure-shift
-        bump) shares its walls parallel to the shift with that partition: they agree under
-        both transforms and stay with the partition, so few of the part's cells are
-        suspects, and their count fails although the hypothesis is the part's true
-        transform. Counted over the whole map instead, the part's own region is what the
-        hypothesis takes: there the cells around agree under it more than under their
-        partition's transform. Chance is what the rival hypotheses of the same suspects
-        (those that put them elsewhere) would take, at the upper quartile
-        (:data:`~brokenness.measure.hypotheses.RIVAL_QUANTILE`), over all the map's cells.
-        """
-        settings, pts, index = self.settings, self.points, self.index
-        transform, candidates = shortfall.transform, shortfall.candidates
-        loose = settings.loose
-        owner = owners(found, pts.shape[0])
-        owner_count = _owner_counts(found, owner, pts, index, settings.threshold)
-        around = self.context.around
-        taken = taken_cells(transform, owner, owner_count, pts, index, settings.threshold, around)
-        k = int(np.count_nonzero(taken))
-        if k < settings.min_cells:
-            return None
-        n = pts.shape[0]
-        shares = [
-            np.count_nonzero(
-                taken_cells(c.transform, owner, owner_count, pts, index, settings.threshold, around)
-            )
-            / n
-            for c, _ in rivals(candidates, pts[:: max(1, n // 200)], transform, loose)
-        ]
-        p_take = float(np.quantile(shares, RIVAL_QUANTILE)) if shares else self.p0
-        chance, _, needed = settings.needed(n, min(p_take, self.p0))
-        if k < needed:
-            return None
-        left = np.flatnonzero(taken)
-        members = left[
-            with_fringe(transform, take_rows(pts, left), np.ones(left.size, bool), index, loose)
-        ]
-        if merge_target(found, take_rows(pts, members), index, loose) is not None:
-            return None
-        return Found(transform, members, (k - chance) / k, 0.0)
 
     def elsewhere(self, found: list[Found], members: NDArray[np.intp]) -> RigidTransform | None:
         """The best hypothesis of ``members`` registered alone that puts them elsewhere than

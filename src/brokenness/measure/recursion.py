@@ -34,6 +34,11 @@ The recursion, for a map M and a reference R::
         translation at those hypotheses' rotations (measure.placement); the best
         hypotheses, and the placement whose free space fits best, offered as rivals to
         the settle step (taken on agreement, or on free space that fits)
+    recover from every hypothesis (a map measured below, some partition of which its
+        free space does not show in place, only): each hypothesis of the call counted as a
+        new partition by the recovery's count over the whole map, at the significance of
+        all of them at once, its own free space significantly off the reference's walls
+        (measure.recovery.pooled_partitions); kept if the map is still measured
     choose again (a map measured below only): every hypothesis of the call that could
         make more cells agree is offered to every partition, taken for any gain of the
         count (measure.pool); undone if a partition is then dropped, or if the map is then
@@ -157,8 +162,8 @@ from .partitions import (
     merge_target,
     with_fringe,
 )
-from .pool import Recorded, offered
-from .recovery import drop_incoherent, recover, relocation_rivals
+from .pool import Recorded, offered, recorded_transforms
+from .recovery import drop_incoherent, pooled_partitions, recover, relocation_rivals
 from .result import BrokennessResult, Partition
 from .settle import settle
 from .support import occupied_around
@@ -360,7 +365,7 @@ def _compute(
         thorough = _wider(registrar)
 
     # every hypothesis of the call, remembered for the last pass (:func:`_rechosen`)
-    hypotheses: list[RigidTransform] = []
+    hypotheses: list[tuple[Candidate, ...]] = []
     registrar = Recorded(registrar, hypotheses)
     if thorough is not None:
         thorough = Recorded(thorough, hypotheses)
@@ -402,8 +407,9 @@ def _compute(
         found = _tested(again, context, rivals)
     found, evidence = _relocated(found, context, thorough, whole, hypotheses)
     del whole  # the prepared reference (its distance map): no registration now
-    found, verdict = _explained_and_judged(found, context, evidence)
+    found, verdict, evidence = _explained_and_judged(found, context, evidence)
     if verdict[0] is None:  # measured: every hypothesis of the call, offered once more
+        found, verdict = _grown(found, verdict, evidence, context, hypotheses)
         found, verdict = _rechosen(found, verdict, context, hypotheses)
     reason, map_ratio, map_bound, ratios = verdict
     found_partitions, labels_working = assemble(
@@ -508,7 +514,7 @@ def _relocated(
     context: MapContext,
     registrar: Registrar,
     whole: Any,
-    hypotheses: list[RigidTransform],
+    hypotheses: list[tuple[Candidate, ...]],
 ) -> tuple[list[Found], Contradiction | None]:
     """The settled partitions, each that may be at a wrong place offered the best places that
     its own cells and its neighbourhood give registered alone
@@ -540,7 +546,8 @@ def _relocated(
     evidence = contradiction(found, points, clear, index, owned)
     which = evidence.doubtful(settings.significance)
     rivals = relocation_rivals(found, context, registrar, whole, which, owned)
-    hypotheses.extend(rivals)  # the placements among them too, for :func:`_rechosen`
+    # the placements among them too, for :func:`_rechosen` (each alone: no registration's)
+    hypotheses.extend((Candidate(t, 1.0),) for t in rivals)
     if not rivals:
         return found, evidence
     moved = settle(found, points, index, settings, rivals, refits=False, clear=clear, owned=owned)
@@ -551,7 +558,10 @@ def _relocated(
 
 
 def _rechosen(
-    found: list[Found], verdict: Verdict, context: MapContext, hypotheses: list[RigidTransform]
+    found: list[Found],
+    verdict: Verdict,
+    context: MapContext,
+    hypotheses: list[tuple[Candidate, ...]],
 ) -> tuple[list[Found], Verdict]:
     """The partitions of a measured map (``verdict``, :func:`_judge`'s), each offered every
     hypothesis of the call that could make more cells agree
@@ -563,7 +573,7 @@ def _rechosen(
     points, index, settings = context.points, context.index, context.settings
     walls = points[not_isolated(points)]
     transforms = [f.transform for f in found]
-    rivals = offered(hypotheses, transforms, walls, index, settings.threshold)
+    rivals = offered(recorded_transforms(hypotheses), transforms, walls, index, settings.threshold)
     if not rivals:
         return found, verdict
     moved = settle(
@@ -571,22 +581,54 @@ def _rechosen(
     )
     if moved is found:
         return found, verdict
-    again, judged = _explained_and_judged(_real(moved, context), context, None)
+    again, judged, _ = _explained_and_judged(_real(moved, context), context, None)
     if judged[0] is not None or len(again) != len(found):
+        return found, verdict
+    return again, judged
+
+
+def _grown(
+    found: list[Found],
+    verdict: Verdict,
+    evidence: Contradiction | None,
+    context: MapContext,
+    hypotheses: list[tuple[Candidate, ...]],
+) -> tuple[list[Found], Verdict]:
+    """The partitions of a measured map (``verdict``, :func:`_judge`'s on ``evidence``, their
+    contradiction), grown by those that the call's hypotheses hold
+    (:func:`~brokenness.measure.recovery.pooled_partitions`: the recovery's count over the
+    whole map, applied to every hypothesis of the call), then the tests of :func:`_real` and
+    of :func:`_explained_and_judged` again.
+
+    Only where some partition's free space does not show that it is in place
+    (:meth:`~brokenness.measure.evidence.Contradiction.doubtful`, as for the relocation): a
+    part held by a partition found before it, at that partition's transform, puts its free
+    space on the reference's walls. Kept only if the map is still measured, with more
+    partitions than before; else ``found`` and ``verdict`` are returned."""
+    if evidence is None or not evidence.doubtful(context.settings.significance):
+        return found, verdict
+    grown = pooled_partitions(found, context, hypotheses)
+    if len(grown) == len(found):
+        return found, verdict
+    again, judged, _ = _explained_and_judged(_real(grown, context), context, None)
+    if judged[0] is not None or len(again) <= len(found):
         return found, verdict
     return again, judged
 
 
 def _explained_and_judged(
     found: list[Found], context: MapContext, evidence: Contradiction | None
-) -> tuple[list[Found], Verdict]:
+) -> tuple[list[Found], Verdict, Contradiction | None]:
     """The partitions that explain their region of the map
-    (:func:`~brokenness.measure.explained.drop_unexplained`), and :func:`_judge`'s verdict
-    on them (``evidence`` is ``found``'s contradiction, if made)."""
+    (:func:`~brokenness.measure.explained.drop_unexplained`), :func:`_judge`'s verdict on
+    them and their contradiction (``evidence``, if made for ``found``; ``None`` if there
+    are no partitions)."""
     explaining = drop_unexplained(found, context)
     if explaining is not found:  # partitions dropped: their free space is owned anew
         evidence = None
-    return explaining, _judge(explaining, context, evidence)
+    if evidence is None and explaining:
+        evidence = contradiction(explaining, context.points, context.clear, context.index)
+    return explaining, _judge(explaining, context, evidence), evidence
 
 
 def _wider(registrar: Registrar) -> Registrar:
