@@ -194,12 +194,11 @@ def test_a_part_shifted_along_its_walls_takes_its_own_region(shift, corner, corn
     assert np.count_nonzero(taken(wrong)) < 0.1 * np.count_nonzero(by_truth)
 
 
-def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corner_index):
-    """The free-space check of a partition counted by the cells it takes: with the right
-    part of building 31 shifted by 12 cells (walls and free space), the partition of its true
-    transform, holding the cells it takes, makes the map's free space cross reference walls
-    far less often than the left part's partition alone; a partition at a wrong place (turned
-    by 90 degrees about the part) that holds the same cells does not."""
+@pytest.fixture(scope="module")
+def shifted_right(corner, corner_index):
+    """The corner with its right part shifted by 12 cells along x (a pure-shift bump), and
+    a partition of the left part's transform holding the cells that agree under it:
+    ``(context, found, (left_t, right_t))``."""
     index = corner_index
     right = np.zeros(corner.shape, bool)
     right[:, 360:] = True
@@ -207,18 +206,31 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space(corner, corne
         corner, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
     )
     points = cell_points(broken.occupied)
-    left_t, right_t = truths
-    agree = index.occupied_agreement(left_t.apply(points), SETTINGS.threshold)
-    found = [Found(left_t, np.flatnonzero(agree), 1.0, 0.0)]
+    agree = index.occupied_agreement(truths[0].apply(points), SETTINGS.threshold)
+    found = [Found(truths[0], np.flatnonzero(agree), 1.0, 0.0)]
+    around = recovery.occupied_around(points, broken.shape)
+    context = MapContext(
+        points, broken, index, SETTINGS, around, ClearFree(broken, SETTINGS.threshold)
+    )
+    return context, found, truths
+
+
+def test_only_a_true_part_taken_over_the_map_clears_the_free_space(shifted_right):
+    """The free-space check of a partition counted by the cells it takes: with the right
+    part of building 31 shifted by 12 cells (walls and free space), the partition of its true
+    transform, holding the cells it takes, makes the map's free space cross reference walls
+    far less often than the left part's partition alone; a partition at a wrong place (turned
+    by 90 degrees about the part) that holds the same cells does not."""
+    context, found, (left_t, right_t) = shifted_right
+    points, index, free = context.points, context.index, context.clear
     owner = recovery.owners(found, points.shape[0])
     counts = recovery._owner_counts(found, owner, points, index, SETTINGS.threshold)
-    around = recovery.occupied_around(points, broken.shape)
-    taken = recovery.taken_cells(right_t, owner, counts, points, index, SETTINGS.threshold, around)
+    taken = recovery.taken_cells(
+        right_t, owner, counts, points, index, SETTINGS.threshold, context.around
+    )
     part = Found(right_t, np.flatnonzero(taken), 1.0, 0.0)
     grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
     assert len(grown) == 2
-    free = ClearFree(broken, SETTINGS.threshold)
-    context = MapContext(points, broken, index, SETTINGS, around, free)
     before = recovery.contradiction(found, points, free, index)
     clears = recovery._clears_free_space
     assert clears(before, grown, context)
@@ -343,25 +355,6 @@ def test_a_recovery_round_is_not_repeated_when_the_tests_change_nothing(monkeypa
     assert result.degree == 2 and len(rounds) == 1
     rounds.clear()
     assert compute_brokenness(reference, reference).degree == 0 and len(rounds) == 1
-
-
-@pytest.fixture(scope="module")
-def shifted_right(corner, corner_index):
-    """The corner with its right part shifted by 12 cells along x (a pure-shift bump), and
-    a partition of the left part's transform holding the cells that agree under it:
-    ``(context, found, (left_t, right_t))``."""
-    index = corner_index
-    right = np.zeros(corner.shape, bool)
-    right[:, 360:] = True
-    broken, truths = break_map(
-        corner, [~right, right], [RigidTransform(), RigidTransform(0.0, 12.0, 0.0)], pad=20
-    )
-    points = cell_points(broken.occupied)
-    agree = index.occupied_agreement(truths[0].apply(points), SETTINGS.threshold)
-    found = [Found(truths[0], np.flatnonzero(agree), 1.0, 0.0)]
-    around = recovery.occupied_around(points, broken.shape)
-    context = MapContext(points, broken, index, SETTINGS, around, ClearFree(broken, 2.0))
-    return context, found, truths
 
 
 def _junk(k: int) -> tuple[Candidate, ...]:
