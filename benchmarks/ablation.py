@@ -21,7 +21,11 @@ Stages (README step numbers):
 - ``all-suspects``: step 5 does not register all the suspects when their regions hold fewer;
 - ``groups``: step 5 does not register each group of suspects and the region around it;
 - ``region-placement``: step 5's last search (the region around each group of dense
-  suspects placed with all its cells) is left out.
+  suspects placed with all its cells) is left out;
+- ``rechosen``: step 8's last offers of every hypothesis of the call ("Every hypothesis,
+  once more") are left out;
+- ``pooled``: step 8's count of every hypothesis of the call as a new partition ("... and
+  as new partitions") is left out.
 
 Usage::
 
@@ -68,7 +72,15 @@ def _keyword_false(module: Any, name: str, keyword: str) -> None:
 
 
 def _relocation() -> None:
-    recursion._relocated = lambda found, context, registrar, whole: (found, None)  # type: ignore[assignment]
+    recursion._relocated = lambda found, context, registrar, whole, hypotheses: (found, None)  # type: ignore[assignment]
+
+
+def _rechosen() -> None:
+    recursion._rechosen = lambda found, verdict, context, hypotheses: (found, verdict)  # type: ignore[assignment]
+
+
+def _pooled() -> None:
+    recursion._grown = lambda found, verdict, evidence, context, hypotheses: (found, verdict)  # type: ignore[assignment]
 
 
 def _piece_rivals() -> None:
@@ -98,6 +110,8 @@ STAGES: dict[str, Callable[[], None]] = {
     ),
     "groups": lambda: _searches_without(lambda step, suspect: bool(step.sources)),
     "region-placement": lambda: _searches_without(lambda step, suspect: not step.counted),
+    "rechosen": _rechosen,
+    "pooled": _pooled,
 }
 
 
