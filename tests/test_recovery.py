@@ -232,12 +232,12 @@ def test_only_a_true_part_taken_over_the_map_clears_the_free_space(shifted_right
     grown = reassign([*found, part], points, index, SETTINGS.threshold, SETTINGS.min_cells)
     assert len(grown) == 2
     before = recovery.contradiction(found, points, free, index)
-    clears = recovery._clears_free_space
-    assert clears(before, grown, context)
+    clears, z = recovery._clears_free_space, SETTINGS.significance
+    assert clears(before, recovery.contradiction(grown, points, free, index), z)
     centre = points[taken].mean(axis=0)
     turned = RigidTransform(np.pi / 2).compose(RigidTransform(0.0, *(-centre))).compose(right_t)
     wrong = [*found, Found(RigidTransform(0.0, *centre).compose(turned), part.members, 1.0, 0.0)]
-    assert not clears(before, wrong, context)
+    assert not clears(before, recovery.contradiction(wrong, points, free, index), z)
 
 
 def test_suspect_regions_group_near_suspects_and_take_every_cell_around():

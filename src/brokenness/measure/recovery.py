@@ -486,16 +486,31 @@ def _new_ones(
     whose border cells are among the suspects."""
     if not candidates or not found:
         return candidates
+    far = _far_from([c.transform for c in candidates], found, pts, tolerance)
+    return [c for c, keep in zip(candidates, far, strict=True) if keep]
+
+
+def _far_from(
+    transforms: Sequence[RigidTransform],
+    found: list[Found],
+    pts: NDArray[np.float64],
+    tolerance: float,
+) -> NDArray[np.bool_]:
+    """Per transform, whether it puts ``pts`` (on average, over an even sample of about 200
+    of them) more than ``tolerance`` cells away from where every partition's transform
+    puts them (:func:`_new_ones`)."""
+    if not transforms or not found:
+        return np.ones(len(transforms), dtype=bool)
     picked = pts[:: max(1, pts.shape[0] // 200)]
     sample = np.column_stack([picked, np.ones(picked.shape[0])])
 
-    def moved(transforms: list[RigidTransform]) -> NDArray[np.float64]:
-        return np.stack([t.matrix[:2] for t in transforms]) @ sample.T  # (T, 2, M)
+    def moved(ts: Sequence[RigidTransform]) -> NDArray[np.float64]:
+        return np.stack([t.matrix[:2] for t in ts]) @ sample.T  # (T, 2, M)
 
-    a = moved([c.transform for c in candidates])
+    a = moved(transforms)
     b = moved([f.transform for f in found])
-    apart = point_norms(np.moveaxis(a[:, None] - b[None], 2, -1)).mean(axis=2)  # (C, F)
-    return [c for c, far in zip(candidates, (apart > tolerance).all(axis=1), strict=True) if far]
+    apart = point_norms(np.moveaxis(a[:, None] - b[None], 2, -1)).mean(axis=2)  # (T, F)
+    return (apart > tolerance).all(axis=1)
 
 
 def recover(
@@ -695,13 +710,12 @@ def _taken_over_map(
             continue
         if before is None:
             before = contradiction(found, points, context.clear, index)
-        if not _clears_free_space(before, grown, context):
+        after = contradiction(grown, points, context.clear, index)
+        if not _clears_free_space(before, after, settings.significance):
             continue
-        if own_evidence:
-            after = contradiction(grown, points, context.clear, index)
-            new = next(q for q, g in enumerate(grown) if g.transform is taken.transform)
-            if not after.upper_ratio(settings.significance, new) < 1.0:
-                continue
+        # the new partition is the last (``reassign`` keeps the order; ``_kept`` kept it)
+        if own_evidence and not after.upper_ratio(settings.significance, len(grown) - 1) < 1.0:
+            continue
         return grown
     return None
 
@@ -729,11 +743,11 @@ def pooled_partitions(
     sample of the cells they could take agree (:func:`_pooled_shortfalls`).
     """
     settings = context.settings
-    tests = len(distinct_indices(recorded_transforms(pool), context.points.mean(axis=0)))
-    context = replace(context, settings=settings.for_tests(tests))
+    hypotheses = _Hypotheses.of(pool, context.points)
+    context = replace(context, settings=settings.for_tests(len(hypotheses.distinct)))
     while found and len(found) < settings.max_partitions:
         taking = _Taking(context, found)
-        shortfalls = _pooled_shortfalls(taking, pool, found)
+        shortfalls = _pooled_shortfalls(taking, hypotheses, found)
         grown = _taken_over_map(context, found, shortfalls, taking, own_evidence=True)
         if grown is None:
             break
@@ -750,10 +764,24 @@ _PROBE_TAKEABLE = 4096
 _COUNTED_PER_TRIED = 4
 
 
+class _Hypotheses(NamedTuple):
+    """The call's hypotheses as :func:`pooled_partitions` reads them, made once a call."""
+
+    transforms: list[RigidTransform]  # every hypothesis, in the pool's order
+    groups: list[tuple[Candidate, ...]]  # each one's registration (its rivals)
+    distinct: list[int]  # the first of each group of the same placement (pool.distinct_indices)
+
+    @classmethod
+    def of(cls, pool: Sequence[Sequence[Candidate]], points: NDArray[np.float64]) -> _Hypotheses:
+        transforms = recorded_transforms(pool)
+        groups = [tuple(group) for group in pool for _ in group]
+        return cls(transforms, groups, distinct_indices(transforms, points.mean(axis=0)))
+
+
 def _pooled_shortfalls(
-    taking: _Taking, pool: Sequence[Sequence[Candidate]], found: list[Found]
+    taking: _Taking, hypotheses: _Hypotheses, found: list[Found]
 ) -> list[_Shortfall]:
-    """The distinct hypotheses of ``pool`` to try as new partitions (:func:`pooled_partitions`),
+    """The distinct hypotheses of the call to try as new partitions (:func:`pooled_partitions`),
     the most cells taken first (ties in the pool's order), each with its registration's
     group as its rivals. A hypothesis that puts the map where a partition does is that
     partition (:func:`_new_ones`); the others are ranked by how many of an even sample of
@@ -765,11 +793,10 @@ def _pooled_shortfalls(
     takeable = taking.takeable()
     if np.count_nonzero(takeable) < settings.min_cells:
         return []
-    groups = [group for group in pool for _ in group]
-    flat = recorded_transforms(pool)
-    distinct = [Candidate(flat[k], 1.0) for k in distinct_indices(flat, points.mean(axis=0))]
-    position = {id(t): k for k, t in enumerate(flat)}
-    fresh = [position[id(c.transform)] for c in _new_ones(distinct, found, points, settings.loose)]
+    flat = hypotheses.transforms
+    distinct = hypotheses.distinct
+    far = _far_from([flat[k] for k in distinct], found, points, settings.loose)
+    fresh = [k for k, keep in zip(distinct, far, strict=True) if keep]
     probe = points[takeable]
     probe = probe[:: max(1, -(-probe.shape[0] // _PROBE_TAKEABLE))]
     agreeing = counts([flat[k] for k in fresh], probe, index, settings.threshold)
@@ -779,7 +806,9 @@ def _pooled_shortfalls(
         for q in ranked[: _COUNTED_PER_TRIED * settings.max_candidates]
     ]
     kept = sorted((-k, at) for k, at in cells if k >= settings.min_cells)
-    return [_Shortfall(flat[at], tuple(groups[at])) for _, at in kept[: settings.max_candidates]]
+    return [
+        _Shortfall(flat[at], hypotheses.groups[at]) for _, at in kept[: settings.max_candidates]
+    ]
 
 
 def _kept(found: list[Found], grown: list[Found], new: Found) -> bool:
@@ -963,11 +992,11 @@ def _neighbourhood(members: NDArray[np.intp], search: _Search, radius: int) -> N
     return np.flatnonzero(near > 0)
 
 
-def _clears_free_space(before: Contradiction, grown: list[Found], context: MapContext) -> bool:
-    """Whether the partitions ``grown`` (those found and, last, a partition taken over the
-    whole map) make the map's free space cross the reference's walls significantly less
-    often than those found did (``before``, their
-    :func:`~brokenness.measure.evidence.contradiction`).
+def _clears_free_space(before: Contradiction, after: Contradiction, z: float) -> bool:
+    """Whether the partitions of ``after`` (their
+    :func:`~brokenness.measure.evidence.contradiction`: those found and, last, a partition
+    taken over the whole map) make the map's free space cross the reference's walls
+    significantly less often (``z`` standard deviations) than those found did (``before``).
 
     The test of a partition counted by the cells it takes (step 5 of the module docstring):
     the free space in front of the walls of a part that is truly off lands on reference walls
@@ -979,10 +1008,9 @@ def _clears_free_space(before: Contradiction, grown: list[Found], context: MapCo
     must exceed ``z`` standard deviations of the difference of those two Poisson counts,
     ``z sqrt(fall + 2 x_new)``.
     """
-    after = contradiction(grown, context.points, context.clear, context.index)
     fall = int(before.contradicting.sum()) - int(after.contradicting.sum())
     x_new = int(after.contradicting[-1])
-    return fall > 0 and fall > context.settings.significance * math.sqrt(fall + 2 * x_new)
+    return fall > 0 and fall > z * math.sqrt(fall + 2 * x_new)
 
 
 @dataclass(frozen=True)
