@@ -581,10 +581,10 @@ def _rechosen(
     )
     if moved is found:
         return found, verdict
-    again, judged, _ = _explained_and_judged(_real(moved, context), context, None)
-    if judged[0] is not None or len(again) != len(found):
+    again = _measured_again(moved, context)
+    if again is None or len(again[0]) != len(found):
         return found, verdict
-    return again, judged
+    return again
 
 
 def _grown(
@@ -610,10 +610,18 @@ def _grown(
     grown = pooled_partitions(found, context, hypotheses)
     if len(grown) == len(found):
         return found, verdict
-    again, judged, _ = _explained_and_judged(_real(grown, context), context, None)
-    if judged[0] is not None or len(again) <= len(found):
+    again = _measured_again(grown, context)
+    if again is None or len(again[0]) <= len(found):
         return found, verdict
-    return again, judged
+    return again
+
+
+def _measured_again(found: list[Found], context: MapContext) -> tuple[list[Found], Verdict] | None:
+    """``found`` after the tests of :func:`_real` and of :func:`_explained_and_judged`, with
+    the verdict, if the map is still measured (``None`` if not): how the last passes check
+    what they changed."""
+    again, judged, _ = _explained_and_judged(_real(found, context), context, None)
+    return None if judged[0] is not None else (again, judged)
 
 
 def _explained_and_judged(
