@@ -20,6 +20,9 @@ from brokenness.measure.partitions import Found
 from brokenness.measure.placement import (
     CoarseAgreement,
     _best_shift,
+    _coarse_peaks,
+    _most_in_box,
+    _templates,
     coarse_counts,
     free_placement,
 )
@@ -193,3 +196,38 @@ def test_a_part_mixed_with_other_borders_is_placed_at_its_walls_rotation() -> No
     first = next(placements(cells, angles, index, coarse, SETTINGS, SETTINGS.min_cells, 8))
     off = np.hypot(*(first.apply(part) - truth.apply(part)).T)
     assert float(np.median(off)) <= 1.0
+
+
+@pytest.mark.parametrize("degrees", [0.0, 17.0, 45.0, 90.0, 203.5])
+def test_a_rotation_skipped_for_its_spread_could_not_reach_the_floor(
+    corner: OccupancyMap, corner_index: ReferenceIndex, degrees: float
+) -> None:
+    # the most cells one box of the agreement grid's extent holds bounds every coarse count
+    # of the rotation, so a rotation skipped below the floor loses no placement
+    coarse = CoarseAgreement.of(corner_index, SETTINGS.threshold)
+    assert 0 < coarse.extent[0] <= coarse.grid.shape[0]
+    assert 0 < coarse.extent[1] <= coarse.grid.shape[1]
+    points = cell_points(corner.occupied[100:260, 120:300]) + [120.0, 100.0]
+    angle = np.radians(degrees)
+    ((counts, _),) = coarse_counts(points, [angle], coarse)
+    ((_, _, template),) = _templates(points, [angle], coarse.pool)
+    assert counts.max() <= _most_in_box(template, coarse.extent)
+
+
+def test_only_rotations_that_cannot_reach_the_floor_are_skipped() -> None:
+    # a long, thin reference: the cells of a long wall turned across it spread wider than
+    # its walls, and no translation can count the floor of them there
+    states = np.full((40, 400), FREE, np.int8)
+    states[[5, 34], 10:390] = OCCUPIED
+    index = ReferenceIndex.build(OccupancyMap(states, 0.05))
+    coarse = CoarseAgreement.of(index, SETTINGS.threshold)
+    wall = np.column_stack([np.arange(300.0), np.zeros(300)])  # 300 cells in a row
+    along, across = 0.0, np.pi / 2
+    floor = 250.0
+    spread = [_most_in_box(t, coarse.extent) for _, _, t in _templates(wall, [along, across], 4)]
+    assert spread[0] >= floor > spread[1]  # turned across, at most a box's height of cells
+    peaks = _coarse_peaks(wall, [along, across], coarse, floor)
+    assert peaks and all(abs(p.rotation - along) < 1e-9 for p in peaks)
+    # counted anyway, the skipped rotation has no count at the floor to give
+    (along_counts, _), (across_counts, _) = coarse_counts(wall, [along, across], coarse)
+    assert along_counts.max() >= floor > across_counts.max()

@@ -24,7 +24,9 @@ least often (a rate of 0.2 against 1.8 times that of a random placement, 0.3 aga
    by one coarse cell, correlated with the cells' counts per coarse cell. The coarse count
    is never below the count at full resolution of any translation it stands for, so a
    placement that explains enough cells is not lost to the coarse grid (only to the limit
-   of :data:`PEAKS` below);
+   of :data:`PEAKS` below). A rotation at which no box the size of the grid's agreeing
+   cells (:attr:`CoarseAgreement.extent`) holds the floor of step 3 is not counted: no
+   translation there could reach it;
 3. keeps the coarse placements that are local maxima and count at least the *floor*: the
    cells the partition's own transform makes agree, less ``z`` standard deviations of
    chance (``z sqrt(n p0 (1 - p0))`` for ``n`` cells and chance agreement ``p0``, the
@@ -122,10 +124,15 @@ class CoarseAgreement:
         reference.
     pool : int
         Cells of the working grid per coarse cell, along each axis.
+    extent : tuple of int
+        Rows and columns of the smallest box of coarse cells that holds every 1 of ``grid``
+        (no translation can count more of a partition's cells than lie in a box of this
+        size: :func:`_coarse_peaks` skips the rotations whose cells cannot reach the floor).
     """
 
     grid: NDArray[np.float32]
     pool: int
+    extent: tuple[int, int]
 
     @classmethod
     def of(cls, index: ReferenceIndex, threshold: float) -> CoarseAgreement:
@@ -152,7 +159,9 @@ class CoarseAgreement:
         dilated = padded.copy()
         dilated[:-1] |= padded[1:]
         dilated[:, :-1] |= dilated[:, 1:].copy()
-        return cls(dilated.astype(np.float32), pool)
+        rows, cols = np.flatnonzero(dilated.any(axis=1)), np.flatnonzero(dilated.any(axis=0))
+        extent = (int(rows[-1] - rows[0]) + 1, int(cols[-1] - cols[0]) + 1) if rows.size else (0, 0)
+        return cls(dilated.astype(np.float32), pool, extent)
 
 
 def free_placement(
@@ -333,14 +342,21 @@ def _coarse_peaks(
     floor: float,
 ) -> list[RigidTransform]:
     """The coarse placements (local maxima of the count, at least ``floor``) over all
-    ``angles``, highest count first (ties: first angle, then row-major order)."""
+    ``angles``, highest count first (ties: first angle, then row-major order).
+
+    A rotation at which no box of the grid's :attr:`~CoarseAgreement.extent` holds
+    ``floor`` of the cells is not correlated: no translation could count that many (a
+    partition turned so that its cells spread wider than the reference's walls)."""
+    least = max(1, math.ceil(floor))  # whole counts; at least one cell
+    templates = _templates(members, angles, coarse.pool)
+    reachable = [k for k, t in enumerate(templates) if _most_in_box(t[2], coarse.extent) >= least]
+    correlated = _correlated([templates[k] for k in reachable], coarse, members.shape[0])
     found: list[tuple[float, int, int, RigidTransform]] = []
-    for k, (counts, placement) in enumerate(coarse_counts(members, angles, coarse)):
-        # local maxima (3 x 3 coarse cells) that reach the floor (whole counts; at least one
-        # cell), highest first; none within 2 coarse cells of one kept before it (a plateau
-        # of equal counts is one placement), and at most PEAKS an angle (no more are refined)
+    for k, (counts, placement) in zip(reachable, correlated, strict=True):
+        # local maxima (3 x 3 coarse cells) that reach the floor, highest first; none within
+        # 2 coarse cells of one kept before it (a plateau of equal counts is one placement),
+        # and at most PEAKS an angle (no more are refined)
         top = cv2.dilate(counts, np.ones((3, 3), np.uint8))
-        least = max(1, math.ceil(floor))
         rows, cols = np.nonzero((counts >= top) & (counts >= least))
         order = np.argsort(-counts[rows, cols], kind="stable")  # highest first, row-major
         kept: list[tuple[int, int]] = []
@@ -367,11 +383,18 @@ def coarse_counts(
     count ``[r, q]``: the lowest of the translations it stands for, those that add 0 to
     ``pool`` cells to it along each axis.
     """
-    pool, grid = coarse.pool, coarse.grid
-    # single precision sums whole counts to well within a half below 2**16 cells; beyond,
-    # double
+    return _correlated(_templates(members, angles, coarse.pool), coarse, members.shape[0])
+
+
+#: A rotation's cells binned on the coarse grid: the angle, the lowest corner of the turned
+#: cells and their count per coarse cell.
+_Template = tuple[float, NDArray[np.float64], NDArray[np.floating]]
+
+
+def _templates(members: NDArray[np.float64], angles: Sequence[float], pool: int) -> list[_Template]:
+    """``members`` turned by each of ``angles`` and counted per coarse cell of ``pool``
+    cells (float32; the correlation sums in double precision beyond 2**16 cells)."""
     dtype = np.float32 if members.shape[0] < 2**16 else np.float64
-    grid = grid.astype(dtype, copy=False)
     templates = []
     for angle in angles:
         c, s = math.cos(angle), math.sin(angle)
@@ -384,9 +407,33 @@ def coarse_counts(
         shape = (int(cells[:, 1].max()) + 1, int(cells[:, 0].max()) + 1)
         template = np.zeros(shape, dtype=dtype)
         np.add.at(template, (cells[:, 1], cells[:, 0]), 1.0)
-        templates.append((angle, low, template))
+        templates.append((float(angle), low, template))
+    return templates
+
+
+def _most_in_box(template: NDArray[np.floating], box: tuple[int, int]) -> float:
+    """The most of ``template``'s cells that one box of ``box`` coarse cells holds (every
+    position of the box over the template, by an integral image)."""
+    bh, bw = min(box[0], template.shape[0]), min(box[1], template.shape[1])
+    if bh <= 0 or bw <= 0:
+        return 0.0
+    sums = np.zeros((template.shape[0] + 1, template.shape[1] + 1))
+    sums[1:, 1:] = template.cumsum(axis=0, dtype=np.float64).cumsum(axis=1)
+    held = sums[bh:, bw:] - sums[:-bh, bw:] - sums[bh:, :-bw] + sums[:-bh, :-bw]
+    return float(held.max())
+
+
+def _correlated(
+    templates: list[_Template], coarse: CoarseAgreement, n: int
+) -> list[tuple[NDArray[np.float32], Callable[[int, int], RigidTransform]]]:
+    """:func:`coarse_counts` of the ``templates`` of ``n`` cells."""
     if not templates:
         return []
+    pool, grid = coarse.pool, coarse.grid
+    # single precision sums whole counts to well within a half below 2**16 cells; beyond,
+    # double
+    dtype = np.float32 if n < 2**16 else np.float64
+    grid = grid.astype(dtype, copy=False)
     # linear (not circular) correlation: the transform is as large as grid and template
     th = max(t.shape[0] for _, _, t in templates)
     tw = max(t.shape[1] for _, _, t in templates)
