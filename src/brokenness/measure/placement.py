@@ -350,7 +350,7 @@ def _coarse_peaks(
     least = max(1, math.ceil(floor))  # whole counts; at least one cell
     templates = _templates(members, angles, coarse.pool)
     reachable = [k for k, t in enumerate(templates) if _most_in_box(t[2], coarse.extent) >= least]
-    correlated = _correlated([templates[k] for k in reachable], coarse, members.shape[0])
+    correlated = _correlated([templates[k] for k in reachable], coarse)
     found: list[tuple[float, int, int, RigidTransform]] = []
     for k, (counts, placement) in zip(reachable, correlated, strict=True):
         # local maxima (3 x 3 coarse cells) that reach the floor, highest first; none within
@@ -383,7 +383,7 @@ def coarse_counts(
     count ``[r, q]``: the lowest of the translations it stands for, those that add 0 to
     ``pool`` cells to it along each axis.
     """
-    return _correlated(_templates(members, angles, coarse.pool), coarse, members.shape[0])
+    return _correlated(_templates(members, angles, coarse.pool), coarse)
 
 
 #: A rotation's cells binned on the coarse grid: the angle, the lowest corner of the turned
@@ -393,7 +393,9 @@ _Template = tuple[float, NDArray[np.float64], NDArray[np.floating]]
 
 def _templates(members: NDArray[np.float64], angles: Sequence[float], pool: int) -> list[_Template]:
     """``members`` turned by each of ``angles`` and counted per coarse cell of ``pool``
-    cells (float32; the correlation sums in double precision beyond 2**16 cells)."""
+    cells."""
+    # single precision sums whole counts to well within a half below 2**16 cells (the
+    # correlation runs in the templates' precision); beyond, double
     dtype = np.float32 if members.shape[0] < 2**16 else np.float64
     templates = []
     for angle in angles:
@@ -417,23 +419,19 @@ def _most_in_box(template: NDArray[np.floating], box: tuple[int, int]) -> float:
     bh, bw = min(box[0], template.shape[0]), min(box[1], template.shape[1])
     if bh <= 0 or bw <= 0:
         return 0.0
-    sums = np.zeros((template.shape[0] + 1, template.shape[1] + 1))
-    sums[1:, 1:] = template.cumsum(axis=0, dtype=np.float64).cumsum(axis=1)
+    sums = cv2.integral(template, sdepth=cv2.CV_64F)
     held = sums[bh:, bw:] - sums[:-bh, bw:] - sums[bh:, :-bw] + sums[:-bh, :-bw]
     return float(held.max())
 
 
 def _correlated(
-    templates: list[_Template], coarse: CoarseAgreement, n: int
+    templates: list[_Template], coarse: CoarseAgreement
 ) -> list[tuple[NDArray[np.float32], Callable[[int, int], RigidTransform]]]:
-    """:func:`coarse_counts` of the ``templates`` of ``n`` cells."""
+    """:func:`coarse_counts` of the ``templates`` (the grid in their precision)."""
     if not templates:
         return []
     pool, grid = coarse.pool, coarse.grid
-    # single precision sums whole counts to well within a half below 2**16 cells; beyond,
-    # double
-    dtype = np.float32 if n < 2**16 else np.float64
-    grid = grid.astype(dtype, copy=False)
+    grid = grid.astype(templates[0][2].dtype, copy=False)
     # linear (not circular) correlation: the transform is as large as grid and template
     th = max(t.shape[0] for _, _, t in templates)
     tw = max(t.shape[1] for _, _, t in templates)

@@ -774,7 +774,7 @@ class _Hypotheses(NamedTuple):
     @classmethod
     def of(cls, pool: Sequence[Sequence[Candidate]], points: NDArray[np.float64]) -> _Hypotheses:
         transforms = recorded_transforms(pool)
-        groups = [tuple(group) for group in pool for _ in group]
+        groups = [g for g in map(tuple, pool) for _ in g]  # one tuple a registration
         return cls(transforms, groups, distinct_indices(transforms, points.mean(axis=0)))
 
 
