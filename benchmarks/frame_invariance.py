@@ -21,10 +21,10 @@ measure itself: the registration's pooled images and the tiles of the settle ste
 on the grid, and ties are broken in the grid's order.
 
 The same runs give what the option ``frames=k`` of :func:`brokenness.compute_brokenness`
-gives (:func:`with_frames`: a map not measured in its own frame is not measured; else, of
-the first ``k`` frames' results that are measured, the one that
-:func:`brokenness.measure.frames.best_of` keeps): the second table, all partitions true and
-the exact degree for ``k = 1..5``.
+gives (:func:`with_frames`: a map not measured in its own frame is not measured, one with no
+partition in doubt keeps its own frame's result; else, of the first ``k`` frames' results
+measured at the own frame's degree, the one that :func:`brokenness.measure.frames.best_of`
+keeps): the second table, all partitions true and the exact degree for ``k = 1..5``.
 
 ``--controls`` runs the negative controls of ``negative_controls.py`` (``--quick``: its
 subset of about 20) in every frame instead: the degrees claimed per frame and with
@@ -59,7 +59,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import realistic  # noqa: E402
 
 from brokenness import (  # noqa: E402
-    BrokennessOptions,
     BrokennessResult,
     RigidTransform,
     compute_brokenness,
@@ -106,6 +105,7 @@ def _outcome(
         "unassigned_cells": result.unassigned_cells,
         "contradiction": result.contradiction,
         "partitions": len(result.partitions),
+        "in_doubt": frames.in_doubt(result),
     }
 
 
@@ -160,17 +160,15 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
     """The outcome ``compute_brokenness(..., frames=k)`` gives: the map's own frame if it is
-    not measured there, else of the first ``k`` frames measured, the one
-    :func:`brokenness.measure.frames.best_of` keeps (each partition counted as the smallest
-    partition's cells)."""
-    if not row["own frame"]["measured"]:
-        return dict(row["own frame"])
-    keys = [key for key in ("own frame", *FRAMES)[:k] if row[key]["measured"]]
-    results = [
-        SimpleNamespace(**{**row[key], "partitions": range(row[key]["partitions"])}) for key in keys
-    ]
-    cost = BrokennessOptions().min_cells(row["occupied_cells"])
-    return dict(row[keys[frames.best_of(results, cost)]])  # type: ignore[arg-type]
+    not measured there or has no partition in doubt (:func:`brokenness.measure.frames.in_doubt`),
+    else of the first ``k`` frames, the one :func:`brokenness.measure.frames.best_of` keeps
+    (measured, at the own frame's degree)."""
+    own = row["own frame"]
+    if not own["measured"] or not own.get("in_doubt", True):
+        return dict(own)
+    keys = [key for key in ("own frame", *FRAMES)[:k]]
+    results = [SimpleNamespace(**row[key]) for key in keys]
+    return dict(row[keys[frames.best_of(results)]])  # type: ignore[arg-type]
 
 
 def frames_table(rows: list[dict[str, Any]]) -> str:

@@ -15,7 +15,8 @@ from brokenness import BrokennessOptions, OccupancyMap, compute_brokenness, load
 from brokenness.cli.main import main
 from brokenness.errors import ParameterError
 from brokenness.masking import cell_points
-from brokenness.measure.frames import FRAMES, back_to_own_frame, best_of, in_frame
+from brokenness.measure.evidence import MAP_RATIO
+from brokenness.measure.frames import FRAMES, back_to_own_frame, best_of, in_doubt, in_frame
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "broken_building_31.yaml"
@@ -68,27 +69,40 @@ def test_the_best_result_leaves_fewest_cells_unexplained_then_crosses_fewest_wal
         replace(r, unassigned_cells=3, contradiction=0.2),
         replace(r, unassigned_cells=3, contradiction=None),
     ]
-    assert best_of(results, cost=30) == 2
+    assert best_of(results) == 2
 
 
-def test_one_partition_more_must_explain_what_a_partition_must_hold(example):
+def test_another_frame_never_changes_the_degree_of_the_maps_own(example):
     m, ref = example
     r = compute_brokenness(m, ref)
-    more = replace(r, partitions=(*r.partitions, r.partitions[-1]))  # one partition more
-    cost = BrokennessOptions().min_cells(r.occupied_cells)  # 2 % of the map: 351 cells
-    assert cost == 351
-
-    def kept(fewer: int) -> int:  # the result kept when ``more`` leaves ``fewer`` cells fewer
-        return best_of(
-            [replace(r, unassigned_cells=400), replace(more, unassigned_cells=400 - fewer)], cost
-        )
-
-    # 350 cells fewer unexplained: not enough for a partition; 352 fewer: enough
-    assert kept(350) == 0
-    assert kept(352) == 1
+    fewer = replace(r, partitions=r.partitions[:-1], degree=1)  # one partition less
+    more = replace(r, partitions=(*r.partitions, r.partitions[-1]), degree=3)
+    refused = replace(r, measured=False, degree=None)
+    own = replace(r, unassigned_cells=400)
+    # whatever the others leave unexplained, only a result at the own frame's degree can win
+    assert best_of([own, replace(fewer, unassigned_cells=0)]) == 0
+    assert best_of([own, replace(more, unassigned_cells=0)]) == 0
+    assert best_of([own, replace(refused, unassigned_cells=0)]) == 0
+    assert best_of([own, replace(r, unassigned_cells=399)]) == 1
 
 
-def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):
+def test_a_map_whose_partitions_all_show_their_place_is_measured_in_its_own_frame(example):
+    m, ref = example
+    one = compute_brokenness(m, ref)
+    assert all(p.contradiction_bound <= MAP_RATIO for p in one.partitions)  # none in doubt
+    for p in one.partitions:  # each partition's bound, as the whole map's, over its ratio
+        assert p.contradiction < p.contradiction_bound == p.to_dict()["contradiction_bound"]
+    three = compute_brokenness(m, ref, frames=3)
+    assert three.parameters["frames"] == 3
+    assert three.parameters["frame"] == "own" and three.parameters["frame_degrees"] == [2]
+    np.testing.assert_array_equal(three.labels, one.labels)
+    assert [p.transform for p in three.partitions] == [p.transform for p in one.partitions]
+
+
+def test_several_frames_keep_the_examples_degree_and_say_which_frame(example, monkeypatch):
+    from brokenness.measure import frames
+
+    monkeypatch.setattr(frames, "MAP_RATIO", 0.0)  # every partition in doubt: all frames
     m, ref = example
     one = compute_brokenness(m, ref)
     three = compute_brokenness(m, ref, frames=3)
@@ -97,6 +111,19 @@ def test_several_frames_keep_the_examples_degree_and_say_which_frame(example):
     assert three.parameters["frame_degrees"] == [2, 2, 2]
     assert three.unassigned_cells <= one.unassigned_cells
     assert three.labels.shape == m.shape
+
+
+@pytest.mark.parametrize(
+    ("bounds", "doubt"),
+    [((0.1, 0.5), False), ((0.1, 0.51), True), ((0.2, None), True), ((), False)],
+)
+def test_a_partition_is_in_doubt_when_its_free_space_does_not_show_its_place(
+    example, bounds, doubt
+):
+    m, ref = example
+    r = compute_brokenness(m, ref)
+    parts = tuple(replace(r.partitions[0], contradiction_bound=b) for b in bounds)
+    assert in_doubt(replace(r, partitions=parts)) is doubt
 
 
 def test_a_pair_not_measured_in_its_own_frame_is_not_measured_in_several():
@@ -115,6 +142,12 @@ def test_a_pair_not_measured_in_its_own_frame_is_not_measured_in_several():
     assert result.parameters["frame"] == "own" and result.parameters["frame_degrees"] == [None]
 
 
+def test_cli_says_when_only_the_maps_own_frame_was_tried(capsys):
+    assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "frames: 3; only the map's own tried (no partition in doubt)" in out
+
+
 def test_cli_frames(capsys):
     assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "2", "--json", "-"]) == 0
     record = json.loads(capsys.readouterr().out)
@@ -130,9 +163,11 @@ def test_other_frames_offer_partitionings_of_a_measured_map_never_a_degree(examp
 
     m, ref = example
     real = compute_brokenness(m, ref)
+    doubtful = replace(real.partitions[-1], contradiction_bound=0.7)
     per_frame = iter(
         [
-            replace(real, unassigned_cells=50),  # own: measured
+            # own: measured, its last partition in doubt
+            replace(real, unassigned_cells=50, partitions=(*real.partitions[:-1], doubtful)),
             replace(real, unassigned_cells=10, measured=False, degree=None),  # fewer left
             replace(real, unassigned_cells=20),  # turned 90: measured, fewer than own
         ]

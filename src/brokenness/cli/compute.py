@@ -117,9 +117,10 @@ def add_parser(subparsers: Any) -> None:
         metavar="K",
         help=(
             "grid frames of MAP to measure in (1-5, default 1: its own): a map measured in "
-            "its own frame is also measured turned by a half turn, a quarter turn each way, "
-            "shifted, and the partitioning that explains the most is kept (up to K times "
-            "the time; see the README, 'Frames')"
+            "its own frame with a partition whose free space does not show its place is "
+            "also measured turned by a half turn, a quarter turn each way, shifted, and the "
+            "partitioning that explains the most is kept (up to K times the time; see the "
+            "README, 'Frames')"
         ),
     )
     p.add_argument(
@@ -339,9 +340,12 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
     """With ``--frames`` 2 or more: every frame's degree and the frame kept."""
     if "frame_degrees" not in result.parameters:
         return
-    degrees = ", ".join(
-        "not measured" if d is None else str(d) for d in result.parameters["frame_degrees"]
-    )
+    tried = result.parameters["frame_degrees"]
+    if len(tried) == 1:
+        why = "not measured there" if tried[0] is None else "no partition in doubt"
+        out.print(f"frames: {result.parameters['frames']}; only the map's own tried ({why})")
+        return
+    degrees = ", ".join("not measured" if d is None else str(d) for d in tried)
     out.print(
         f"frames: {result.parameters['frames']} (degrees {degrees}); kept the "
         f"{result.parameters['frame']} frame's result (the fewest cells unassigned, each "

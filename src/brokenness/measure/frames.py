@@ -11,20 +11,25 @@ in at least one of them for 161 (``benchmarks/frame_invariance.py``).
 
 :func:`in_frame` makes the map in one of :data:`FRAMES`; :func:`back_to_own_frame` reports a
 result of it in the map's own cells; :func:`best_of` keeps, of the results in several
-frames, the one that leaves the fewest occupied cells to no partition (the count every step
-of the measure maximises), each partition counted as the cells the stopping rule asks of a
-partition at least (:meth:`~brokenness.measure.options.BrokennessOptions.min_cells`: one
-partition more must explain that many more cells, as a partition of the recursion must),
-then the one whose free space crosses the reference's walls least (the evidence of step 9),
-then the earlier frame. Several starts of one greedy search, judged by its own objective and
-its own floor: no new test. Without the cost per partition, a frame that splits off a
-spurious partition of a few dozen cells won (a real-log map of sets 3-6 at degree 8 came out
-9). Whether the map is measured at all is decided in its own frame, as without frames
+frames, one at the degree of the map's own frame: the one that leaves the fewest occupied
+cells to no partition (the count every step of the measure maximises), then the one whose
+free space crosses the reference's walls least (the evidence of step 9), then the earlier
+frame. Several starts of one greedy search, judged by its own objective: no new test.
+
+Two decisions stay with the map's own frame, as without frames. Whether the map is measured
 (:func:`brokenness.compute_brokenness` tries the other frames only for a map measured there,
 and keeps only results measured in theirs): in other frames, 5 of the 392 negative controls
 got a degree that their own frame refused (simulated buildings against others, whose
-free-space evidence is the thinnest), so the best of several frames' statuses would claim
-degrees that one frame does not.
+free-space evidence is the thinnest). And its degree: a partition is kept by tests of more
+than the cells it explains (the free space that shows it in place, README steps 8 and 9),
+and comparing frames by the cells alone, each partition counted as the smallest partition's
+cells, took a degree one short on maps whose own frame had it right (session 36, at
+``frames=3``: 2 real-log and 4 simulated maps, against 3 simulated and 4 drawn-building
+degrees set right).
+Last, the other frames are tried only for a map with a partition *in doubt*
+(:func:`in_doubt`: its own free space does not show that it is in place, the partitions
+whose place step 8 searches again): where every partition's free space shows its place,
+another start has no partition to place better, and the map costs one frame.
 """
 
 from __future__ import annotations
@@ -37,9 +42,10 @@ import numpy as np
 
 from ..grid import UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
+from .evidence import MAP_RATIO
 from .result import BrokennessResult
 
-__all__ = ["FRAMES", "SHIFT", "back_to_own_frame", "best_of", "in_frame"]
+__all__ = ["FRAMES", "SHIFT", "back_to_own_frame", "best_of", "in_doubt", "in_frame"]
 
 #: The frames, in the order they are tried: the map's own, then its grid turned by a half
 #: turn, a quarter turn counter-clockwise and clockwise (exactly, :func:`numpy.rot90`), then
@@ -99,19 +105,31 @@ def back_to_own_frame(
     )
 
 
-def best_of(results: Sequence[BrokennessResult], cost: float) -> int:
-    """The index of the result that leaves the fewest occupied cells unexplained, each of
-    its partitions counted as ``cost`` cells more (the smallest partition,
-    :meth:`BrokennessOptions.min_cells`: one partition more must explain that many more
-    cells), then whose free-space contradiction (``result.contradiction``; none counts as
-    the highest) is lowest, then the first."""
+def best_of(results: Sequence[BrokennessResult]) -> int:
+    """The index of the result kept: of ``results`` (the map's own frame's first), those
+    measured at the own frame's degree, the one that leaves the fewest occupied cells to no
+    partition, then whose free-space contradiction (``result.contradiction``; none counts as
+    the highest) is lowest, then the first (``0`` if none is measured at that degree)."""
 
-    def key(i: int) -> tuple[float, float, int]:
+    def key(i: int) -> tuple[int, float, int]:
         r = results[i]
         contradiction = math.inf if r.contradiction is None else r.contradiction
-        return r.unassigned_cells + cost * len(r.partitions), contradiction, i
+        return r.unassigned_cells, contradiction, i
 
-    return min(range(len(results)), key=key)
+    degree = results[0].degree
+    same = [i for i, r in enumerate(results) if r.measured and r.degree == degree]
+    return min(same, key=key, default=0)
+
+
+def in_doubt(result: BrokennessResult) -> bool:
+    """Whether some partition of ``result`` is in doubt: its own free space does not show
+    that it is in place (the upper bound of its ratio, ``contradiction_bound``, is over
+    :data:`~brokenness.measure.evidence.MAP_RATIO`, or nothing bounds it), the partitions
+    whose place the measure searches again (README, step 8)."""
+    return any(
+        p.contradiction_bound is None or p.contradiction_bound > MAP_RATIO
+        for p in result.partitions
+    )
 
 
 def _quarter_turns(frame: str) -> int:

@@ -61,13 +61,16 @@ class BrokennessOptions:
         Keyword options of the registration method (see :func:`brokenness.register`); kept
         as a sorted tuple of ``(name, value)`` pairs, so that the options stay frozen.
     frames : int
-        Grid frames of the map the measure runs in (default 1: the map's own): with ``k``
-        of them, a map measured in its own frame is also measured turned by a half turn,
-        then a quarter turn each way, then shifted (the first ``k``; at most 5), and of the
-        results measured, the one that leaves the fewest cells to no partition, each
-        partition counted as :meth:`min_cells` cells, is kept (see
+        Grid frames of the map the measure may run in (default 1: the map's own): with
+        ``k`` of them, a map measured in its own frame with a partition *in doubt* (its own
+        free space does not show that it is in place: ``Partition.contradiction_bound``
+        over :data:`~brokenness.measure.evidence.MAP_RATIO`) is also measured turned by a
+        half turn, then a quarter turn each way, then shifted (the first ``k``; at most 5),
+        and of the results measured, the one that leaves the fewest cells to no partition,
+        each partition counted as :meth:`min_cells` cells, is kept (see
         :mod:`brokenness.measure.frames` and the README, "Frames"). Up to ``k`` times the
-        time; a map not measured in its own frame is not measured (and costs one frame).
+        time for such a map; a map whose partitions all show their place, or that is not
+        measured in its own frame, costs one frame.
     """
 
     method: str = "ifmi"

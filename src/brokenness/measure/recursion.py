@@ -124,7 +124,7 @@ import math
 import os
 import time
 import warnings
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -150,7 +150,7 @@ from .evidence import (
     wall_contradiction,
 )
 from .explained import MAP_SHARE, drop_unexplained, explained_share
-from .frames import FRAMES, back_to_own_frame, best_of, in_frame
+from .frames import FRAMES, back_to_own_frame, best_of, in_doubt, in_frame
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -180,9 +180,30 @@ from .views import (
 __all__ = ["compute_brokenness"]
 
 MapLike = OccupancyMap | ArrayLike | str | os.PathLike[str]
-#: :func:`_judge`'s verdict: why the map is not measured (``None``: it is), the map's ratio,
-#: its upper bound and each partition's ratio.
-Verdict = tuple[str | None, float | None, float | None, list[float | None]]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """:func:`_judge`'s verdict on a set of partitions.
+
+    Attributes
+    ----------
+    reason : str or None
+        Why the map is not measured (``None``: it is).
+    ratio, bound : float or None
+        The whole map's free-space ratio and its upper bound (``None``: too little free
+        space to tell, or to bound it).
+    ratios, bounds : list of float or None
+        Each partition's ratio and upper bound, largest partition first (as :func:`assemble`
+        sorts them).
+    """
+
+    reason: str | None
+    ratio: float | None
+    bound: float | None
+    ratios: list[float | None]
+    bounds: list[float | None]
+
 
 #: iFMI options of the recursion, under the user's: a remainder mixes partitions, so more
 #: rotation peaks are worth examining than for a single registration.
@@ -300,7 +321,8 @@ def _in_frames(
     reference: MapLike,
     opts: BrokennessOptions,
 ) -> BrokennessResult:
-    """:func:`_compute` in the map's own frame and, if the map is measured there, in the next
+    """:func:`_compute` in the map's own frame and, if the map is measured there with a
+    partition in doubt (:func:`~brokenness.measure.frames.in_doubt`), in the next
     ``opts.frames - 1`` grid frames too; of the results measured, the best is kept
     (:mod:`brokenness.measure.frames`), reported in the map's own cells.
 
@@ -315,15 +337,14 @@ def _in_frames(
     ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
     results = [_compute(original, ref, once)]
-    for frame in FRAMES[1 : opts.frames] if results[0].measured else ():
+    searched = results[0].measured and in_doubt(results[0])
+    for frame in FRAMES[1 : opts.frames] if searched else ():
         moved, cells = in_frame(original, frame)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the map's own frame has said what there is
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
-    measured = [i for i, r in enumerate(results) if r.measured] or [0]
-    cost = opts.min_cells(results[0].occupied_cells)  # what a partition must hold
-    best = measured[best_of([results[i] for i in measured], cost)]
+    best = best_of(results)
     chosen = results[best]
     parameters = chosen.parameters | {
         "frames": opts.frames,
@@ -408,10 +429,10 @@ def _compute(
     found, evidence = _relocated(found, context, thorough, whole, hypotheses)
     del whole  # the prepared reference (its distance map): no registration now
     found, verdict, evidence = _explained_and_judged(found, context, evidence)
-    if verdict[0] is None:  # measured: every hypothesis of the call, offered once more
+    if verdict.reason is None:  # measured: every hypothesis of the call, offered once more
         found, verdict = _grown(found, verdict, evidence, context, hypotheses)
         found, verdict = _rechosen(found, verdict, context, hypotheses)
-    reason, map_ratio, map_bound, ratios = verdict
+    reason = verdict.reason
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
     )
@@ -439,7 +460,8 @@ def _compute(
             displacement=p.displacement,
             displacement_m=p.displacement_m,
             step_seconds=p.step_seconds,
-            contradiction=ratios[p.index],
+            contradiction=verdict.ratios[p.index],
+            contradiction_bound=verdict.bounds[p.index],
             acceptance=acceptance[p.index],
         )
         for p in found_partitions
@@ -461,8 +483,8 @@ def _compute(
         seconds=time.perf_counter() - started,
         measured=reason is None,
         reason=reason,
-        contradiction=map_ratio,
-        contradiction_bound=map_bound,
+        contradiction=verdict.ratio,
+        contradiction_bound=verdict.bound,
     )
 
 
@@ -621,7 +643,7 @@ def _measured_again(found: list[Found], context: MapContext) -> tuple[list[Found
     the verdict, if the map is still measured (``None`` if not): how the last passes check
     what they changed."""
     again, judged, _ = _explained_and_judged(_real(found, context), context, None)
-    return None if judged[0] is not None else (again, judged)
+    return None if judged.reason is not None else (again, judged)
 
 
 def _explained_and_judged(
@@ -709,19 +731,21 @@ def _judge(
     same).
     """
     if not found:
-        return (
+        return Verdict(
             "no part of the map agrees with the reference under any transform found "
             "(registration failed, or not the same place?)",
             None,
             None,
             [],
+            [],
         )
     if evidence is None:
         evidence = contradiction(found, context.points, context.clear, context.index)
     order = sorted(range(len(found)), key=lambda i: (-found[i].members.size, i))
-    ratios = [evidence.ratio(i) for i in order]
-    ratio = evidence.ratio()
     settings = context.settings
+    ratios = [evidence.ratio(i) for i in order]
+    bounds = [_finite(evidence.upper_ratio(settings.significance, i)) for i in order]
+    ratio = evidence.ratio()
     upper = evidence.upper_ratio(settings.significance)
     reason: str | None = None
     explained = explained_share(found, context)
@@ -757,7 +781,12 @@ def _judge(
                 "of the reference's place): most of the map is explained by no partition; "
                 "not the same place?"
             )
-    return reason, ratio, (upper if math.isfinite(upper) else None), ratios
+    return Verdict(reason, ratio, _finite(upper), ratios, bounds)
+
+
+def _finite(bound: float) -> float | None:
+    """An upper bound as reported: ``None`` for one that nothing bounds (``inf``)."""
+    return bound if math.isfinite(bound) else None
 
 
 def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> BrokennessOptions:

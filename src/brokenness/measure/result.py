@@ -51,6 +51,13 @@ class Partition:
         How often the map's free space of this partition lands on reference walls under its
         transform, over the rate of a random placement (0: never; 1: as often as chance;
         ``None``: too little free space to tell). See :mod:`brokenness.measure.evidence`.
+    contradiction_bound : float or None
+        Its upper bound at the stopping rule's significance (a Poisson bound on the
+        contradicting cells over what chance would give; ``None``: no free space of this
+        partition lands on the reference). Over
+        :data:`~brokenness.measure.evidence.MAP_RATIO`, the partition's own free space does
+        not show that it is in place (the whole map's must, for the degree to be measured),
+        and the measure searches its place again (README, steps 8 and 9).
     acceptance : float or None
         Birk & Carpin's acceptance indicator ``agree / (agree + disagree)`` of the
         partition's cells under its transform (see
@@ -69,6 +76,7 @@ class Partition:
     step_seconds: float
     contradiction: float | None = None
     acceptance: float | None = None
+    contradiction_bound: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
@@ -83,6 +91,7 @@ class Partition:
             "displacement_m": self.displacement_m,
             "step_seconds": self.step_seconds,
             "contradiction": self.contradiction,
+            "contradiction_bound": self.contradiction_bound,
             "acceptance": self.acceptance,
         }
 

@@ -582,6 +582,7 @@ _PARTITION = _object(
         "displacement_cells": _NUMBER,
         "displacement_m": _NUMBER,
         "contradiction": _NUMBER,
+        "contradiction_bound": _NUMBER,
         "acceptance": _NUMBER,
     },
     required=("index", "cells", "fraction"),
