@@ -323,8 +323,9 @@ def _in_frames(
 ) -> BrokennessResult:
     """:func:`_compute` in the map's own frame and, if the map is measured there with a
     partition in doubt (:func:`~brokenness.measure.frames.in_doubt`), in the next
-    ``opts.frames - 1`` grid frames too; of the results measured, the best is kept
-    (:mod:`brokenness.measure.frames`), reported in the map's own cells.
+    ``opts.frames - 1`` grid frames too; of the results measured at the own frame's degree,
+    the best is kept (:func:`~brokenness.measure.frames.best_of`), reported in the map's own
+    cells.
 
     Whether the map is measured is decided in its own frame, as without frames (its
     warnings are issued as they are; the other frames' are not): the other frames only offer
