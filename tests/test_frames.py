@@ -146,6 +146,20 @@ def test_cli_says_when_only_the_maps_own_frame_was_tried(capsys):
     assert main(["compute", str(EXAMPLE), str(REFERENCE), "--frames", "3"]) == 0
     out = capsys.readouterr().out
     assert "frames: 3; only the map's own tried (no partition in doubt)" in out
+    assert "in doubt:" not in out
+
+
+def test_cli_names_the_partitions_in_doubt(example, capsys, monkeypatch):
+    import brokenness.measure
+
+    m, ref = example
+    real = compute_brokenness(m, ref)
+    last = replace(real.partitions[-1], contradiction_bound=0.72)
+    doubtful = replace(real, partitions=(*real.partitions[:-1], last))
+    monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: doubtful)
+    assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
+    out = capsys.readouterr().out
+    assert "in doubt: partition 2 (at most 72 %): its own free space does not show that it" in out
 
 
 def test_cli_frames(capsys):

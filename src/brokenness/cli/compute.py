@@ -348,8 +348,8 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
     degrees = ", ".join("not measured" if d is None else str(d) for d in tried)
     out.print(
         f"frames: {result.parameters['frames']} (degrees {degrees}); kept the "
-        f"{result.parameters['frame']} frame's result (the fewest cells unassigned, each "
-        "partition counted as the smallest partition's cells)"
+        f"{result.parameters['frame']} frame's result (at the own frame's degree, the fewest "
+        "cells unassigned)"
     )
 
 
@@ -366,6 +366,27 @@ def _evidence_line(result: BrokennessResult) -> str:
     return (
         f"evidence: the map's free space crosses reference walls at {seen}{upper} "
         f"(measured when at most {percent(MAP_RATIO)})"
+    )
+
+
+def _doubt_line(result: BrokennessResult) -> str | None:
+    """The partitions whose own free space does not show that they are in place (one line;
+    ``None`` when there is none): the least certain places of a measured degree."""
+    from ..measure.evidence import MAP_RATIO
+    from ..measure.frames import partitions_in_doubt
+
+    named = [
+        f"{p.index} (too little free space to tell)"
+        if p.contradiction_bound is None
+        else f"{p.index} (at most {100 * p.contradiction_bound:.0f} %)"
+        for p in partitions_in_doubt(result)
+    ]
+    if not named:
+        return None
+    which, whose = ("partition", "its own") if len(named) == 1 else ("partitions", "each one's")
+    return (
+        f"in doubt: {which} {', '.join(named)}: {whose} free space does not show that it is "
+        f"in place (a bound over {100 * MAP_RATIO:.0f} % of chance)"
     )
 
 
@@ -416,6 +437,9 @@ def _print_summary(
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
     out.print(_evidence_line(result))
+    doubt = _doubt_line(result)
+    if doubt is not None:
+        out.print(doubt)
     _frames_line(result, out)
     note = "rot°/shift (cells): map cells onto reference cells, y down, + = clockwise on screen"
     if metres:

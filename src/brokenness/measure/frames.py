@@ -43,9 +43,17 @@ import numpy as np
 from ..grid import UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
 from .evidence import MAP_RATIO
-from .result import BrokennessResult
+from .result import BrokennessResult, Partition
 
-__all__ = ["FRAMES", "SHIFT", "back_to_own_frame", "best_of", "in_doubt", "in_frame"]
+__all__ = [
+    "FRAMES",
+    "SHIFT",
+    "back_to_own_frame",
+    "best_of",
+    "in_doubt",
+    "in_frame",
+    "partitions_in_doubt",
+]
 
 #: The frames, in the order they are tried: the map's own, then its grid turned by a half
 #: turn, a quarter turn counter-clockwise and clockwise (exactly, :func:`numpy.rot90`), then
@@ -122,14 +130,20 @@ def best_of(results: Sequence[BrokennessResult]) -> int:
 
 
 def in_doubt(result: BrokennessResult) -> bool:
-    """Whether some partition of ``result`` is in doubt: its own free space does not show
-    that it is in place (the upper bound of its ratio, ``contradiction_bound``, is over
-    :data:`~brokenness.measure.evidence.MAP_RATIO`, or nothing bounds it), the partitions
-    whose place the measure searches again (README, step 8)."""
-    return any(
-        p.contradiction_bound is None or p.contradiction_bound > MAP_RATIO
+    """Whether some partition of ``result`` is in doubt (:func:`partitions_in_doubt`)."""
+    return bool(partitions_in_doubt(result))
+
+
+def partitions_in_doubt(result: BrokennessResult) -> list[Partition]:
+    """The partitions of ``result`` whose own free space does not show that they are in place:
+    the upper bound of its ratio, ``contradiction_bound``, is over
+    :data:`~brokenness.measure.evidence.MAP_RATIO`, or nothing bounds it (the partitions
+    whose place the measure searches again, README step 8)."""
+    return [
+        p
         for p in result.partitions
-    )
+        if p.contradiction_bound is None or p.contradiction_bound > MAP_RATIO
+    ]
 
 
 def _quarter_turns(frame: str) -> int:
