@@ -166,7 +166,7 @@ def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
     own = row["own frame"]
     if not own["measured"] or not own.get("in_doubt", True):
         return dict(own)
-    keys = [key for key in ("own frame", *FRAMES)[:k]]
+    keys = ["own frame", *FRAMES][:k]
     results = [SimpleNamespace(**row[key]) for key in keys]
     return dict(row[keys[frames.best_of(results)]])  # type: ignore[arg-type]
 

@@ -66,9 +66,9 @@ class BrokennessOptions:
         free space does not show that it is in place: ``Partition.contradiction_bound``
         over :data:`~brokenness.measure.evidence.MAP_RATIO`) is also measured turned by a
         half turn, then a quarter turn each way, then shifted (the first ``k``; at most 5),
-        and of the results measured, the one that leaves the fewest cells to no partition,
-        each partition counted as :meth:`min_cells` cells, is kept (see
-        :mod:`brokenness.measure.frames` and the README, "Frames"). Up to ``k`` times the
+        and of the results measured at the own frame's degree, the one that leaves the
+        fewest cells to no partition is kept (see :mod:`brokenness.measure.frames` and the
+        README, "Frames"; the other frames never change the degree). Up to ``k`` times the
         time for such a map; a map whose partitions all show their place, or that is not
         measured in its own frame, costs one frame.
     """
