@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -15,8 +16,15 @@ from brokenness import BrokennessOptions, OccupancyMap, compute_brokenness, load
 from brokenness.cli.main import main
 from brokenness.errors import ParameterError
 from brokenness.masking import cell_points
-from brokenness.measure.evidence import MAP_RATIO
-from brokenness.measure.frames import FRAMES, back_to_own_frame, best_of, in_doubt, in_frame
+from brokenness.measure.evidence import MAP_RATIO, Contradiction, doubtful_bound
+from brokenness.measure.frames import (
+    FRAMES,
+    back_to_own_frame,
+    best_of,
+    in_doubt,
+    in_frame,
+    partitions_in_doubt,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "broken_building_31.yaml"
@@ -102,7 +110,8 @@ def test_a_map_whose_partitions_all_show_their_place_is_measured_in_its_own_fram
 def test_several_frames_keep_the_examples_degree_and_say_which_frame(example, monkeypatch):
     from brokenness.measure import frames
 
-    monkeypatch.setattr(frames, "MAP_RATIO", 0.0)  # every partition in doubt: all frames
+    # every partition in doubt: all frames are tried
+    monkeypatch.setattr(frames, "doubtful_bound", lambda bound: True)
     m, ref = example
     one = compute_brokenness(m, ref)
     three = compute_brokenness(m, ref, frames=3)
@@ -124,6 +133,25 @@ def test_a_partition_is_in_doubt_when_its_free_space_does_not_show_its_place(
     r = compute_brokenness(m, ref)
     parts = tuple(replace(r.partitions[0], contradiction_bound=b) for b in bounds)
     assert in_doubt(replace(r, partitions=parts)) is doubt
+
+
+def test_a_results_partitions_in_doubt_are_those_the_measure_searched_again(example):
+    """One predicate on a bound: the measure's on the counts (``Contradiction.doubtful``) and
+    the result's on ``contradiction_bound`` pick the same partitions."""
+    m, ref = example
+    r = compute_brokenness(m, ref)
+    counts = Contradiction(np.array([4000, 50, 0]), np.array([40, 0, 0]), 0.1, 1)
+    z = 6.0
+    bounds = [counts.upper_ratio(z, i) for i in range(3)]
+    parts = tuple(
+        replace(r.partitions[0], index=i, contradiction_bound=b if math.isfinite(b) else None)
+        for i, b in enumerate(bounds)
+    )
+    in_doubt_now = [p.index for p in partitions_in_doubt(replace(r, partitions=parts))]
+    assert in_doubt_now == counts.doubtful(z) == [1, 2]
+    assert doubtful_bound(MAP_RATIO) is False
+    assert doubtful_bound(math.nextafter(MAP_RATIO, 1.0)) is True
+    assert doubtful_bound(math.inf) is doubtful_bound(None) is doubtful_bound(math.nan) is True
 
 
 def test_a_pair_not_measured_in_its_own_frame_is_not_measured_in_several():

@@ -61,6 +61,7 @@ __all__ = [
     "WallContradiction",
     "chance_rate",
     "contradiction",
+    "doubtful_bound",
     "free_space",
     "wall_contradiction",
     "wall_owners",
@@ -149,10 +150,22 @@ class Contradiction:
 
     def doubtful(self, z: float) -> list[int]:
         """The partitions whose free space, on its own, would not pass the map's test: the
-        upper bound of its ratio, at ``z`` standard deviations, over :data:`MAP_RATIO` (a
-        rate that crosses walls too often, or too few cells to show that it does not).
+        upper bound of its ratio, at ``z`` standard deviations, is :func:`doubtful_bound`
+        (a rate that crosses walls too often, or too few cells to show that it does not).
         """
-        return [i for i in range(self.counted.size) if self.upper_ratio(z, i) > MAP_RATIO]
+        return [i for i in range(self.counted.size) if doubtful_bound(self.upper_ratio(z, i))]
+
+
+def doubtful_bound(bound: float | None) -> bool:
+    """Whether an upper bound of a free-space ratio leaves its placement in doubt: it is over
+    :data:`MAP_RATIO`, or nothing bounds it (``inf``, or ``None`` as results report it).
+
+    The one test of a partition's own free space, on the counts during the measure
+    (:meth:`Contradiction.doubtful`) and on a result's
+    :attr:`~brokenness.measure.result.Partition.contradiction_bound` after it
+    (:func:`~brokenness.measure.frames.partitions_in_doubt`).
+    """
+    return bound is None or not bound <= MAP_RATIO
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..grid import UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
-from .evidence import MAP_RATIO
+from .evidence import doubtful_bound
 from .result import BrokennessResult, Partition
 
 __all__ = [
@@ -137,13 +137,10 @@ def in_doubt(result: BrokennessResult) -> bool:
 def partitions_in_doubt(result: BrokennessResult) -> list[Partition]:
     """The partitions of ``result`` whose own free space does not show that they are in place:
     the upper bound of its ratio, ``contradiction_bound``, is over
-    :data:`~brokenness.measure.evidence.MAP_RATIO`, or nothing bounds it (the partitions
-    whose place the measure searches again, README step 8)."""
-    return [
-        p
-        for p in result.partitions
-        if p.contradiction_bound is None or p.contradiction_bound > MAP_RATIO
-    ]
+    :data:`~brokenness.measure.evidence.MAP_RATIO`, or nothing bounds it
+    (:func:`~brokenness.measure.evidence.doubtful_bound`; the partitions whose place the
+    measure searches again, README step 8)."""
+    return [p for p in result.partitions if doubtful_bound(p.contradiction_bound)]
 
 
 def _quarter_turns(frame: str) -> int:
