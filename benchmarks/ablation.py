@@ -25,7 +25,9 @@ Stages (README step numbers):
 - ``rechosen``: step 8's last offers of every hypothesis of the call ("Every hypothesis,
   once more") are left out;
 - ``pooled``: step 8's count of every hypothesis of the call as a new partition ("... and
-  as new partitions") is left out.
+  as new partitions") is left out;
+- ``symmetry``: step 10 (pieces at twins that a symmetry of the reference relates made one
+  partition) is left out.
 
 Usage::
 
@@ -83,6 +85,10 @@ def _pooled() -> None:
     recursion._grown = lambda found, verdict, evidence, context, hypotheses: (found, verdict)  # type: ignore[assignment]
 
 
+def _symmetry() -> None:
+    recursion.symmetries = lambda *args: []  # type: ignore[assignment]
+
+
 def _piece_rivals() -> None:
     recovery._piece_rivals = lambda *args, **kwargs: []  # type: ignore[assignment]
 
@@ -112,6 +118,7 @@ STAGES: dict[str, Callable[[], None]] = {
     "region-placement": lambda: _searches_without(lambda step, suspect: not step.counted),
     "rechosen": _rechosen,
     "pooled": _pooled,
+    "symmetry": _symmetry,
 }
 
 

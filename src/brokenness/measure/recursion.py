@@ -116,6 +116,14 @@ partition is a contiguous region), with the same stopping rule; and
 :func:`~brokenness.measure.partitions.consolidate` joins partitions that are one rigid
 piece (a part of a symmetric building first placed at a symmetric twin of its place, and
 found again in its true place). See those modules for the details and the measured gain.
+
+Fewest partitions
+-----------------
+Last, on a measured map, pieces of one part held at different twins of a symmetric
+reference are made one partition where one transform (a piece's, followed by a symmetry of
+the reference: the reference registered with itself) explains them all as well as their
+own transforms do (:mod:`~brokenness.measure.symmetry`; README step 10): the degree is the
+least number of partitions, less one.
 """
 
 from __future__ import annotations
@@ -160,13 +168,16 @@ from .partitions import (
     drop_redundant,
     labels_in_original_grid,
     merge_target,
+    reassign,
     with_fringe,
 )
 from .pool import Recorded, offered, recorded_transforms
 from .recovery import drop_incoherent, pooled_partitions, recover, relocation_rivals
+from .refine import refit_transform
 from .result import BrokennessResult, Partition
 from .settle import settle
 from .support import occupied_around
+from .symmetry import merges, symmetries
 from .views import (
     candidates_of,
     exhausted,
@@ -428,11 +439,16 @@ def _compute(
         searched = again
         found = _tested(again, context, rivals)
     found, evidence = _relocated(found, context, thorough, whole, hypotheses)
+    # the reference's symmetries (step 10), while it is prepared; not recorded as hypotheses
+    motions: list[RigidTransform] = []
+    if method == "ifmi" and len(found) > 1 and isinstance(thorough, Recorded):
+        motions = symmetries(thorough.registrar, whole, index, settings)
     del whole  # the prepared reference (its distance map): no registration now
     found, verdict, evidence = _explained_and_judged(found, context, evidence)
     if verdict.reason is None:  # measured: every hypothesis of the call, offered once more
         found, verdict = _grown(found, verdict, evidence, context, hypotheses)
         found, verdict = _rechosen(found, verdict, context, hypotheses)
+        found, verdict = _fewest(found, verdict, context, motions)
     reason = verdict.reason
     found_partitions, labels_working = assemble(
         found, points, working, (to_working, to_reference), original, ref, index
@@ -637,6 +653,56 @@ def _grown(
     if again is None or len(again[0]) <= len(found):
         return found, verdict
     return again
+
+
+def _fewest(
+    found: list[Found], verdict: Verdict, context: MapContext, motions: list[RigidTransform]
+) -> tuple[list[Found], Verdict]:
+    """The partitions of a measured map (``verdict``, :func:`_judge`'s), with the partitions
+    that one transform explains as well as their own transforms do replaced by one
+    partition of it (README step 10, :mod:`~brokenness.measure.symmetry`: pieces of a part
+    held at twins that the reference's symmetries ``motions`` relate).
+
+    The merges are tried best first (:func:`~brokenness.measure.symmetry.merges`), each
+    set of partitions once: the transform is refitted on their cells
+    (:func:`~brokenness.measure.refine.refit_transform`), every cell goes to its best
+    partition (:func:`~brokenness.measure.partitions.reassign`), and the tests of
+    :func:`_real` and :func:`_explained_and_judged` run again. The first merge after which
+    the map is still measured, with fewer partitions, is kept, and the merges are sought
+    again among the new partitions; else ``found`` and ``verdict`` are returned.
+    """
+    points, index, settings = context.points, context.index, context.settings
+    while len(found) > 1:
+        tried: set[tuple[int, ...]] = set()
+        for merge in merges(found, points, index, settings, motions):
+            if merge.partitions in tried:
+                continue
+            tried.add(merge.partitions)
+            joined = [found[q] for q in merge.partitions]
+            members = np.sort(np.concatenate([f.members for f in joined]))
+            transform = refit_transform(
+                merge.transform, points[members], index, settings.threshold, settings.loose
+            )
+            one = Found(
+                transform,
+                members,
+                max(f.confidence for f in joined),
+                sum(f.seconds for f in joined),
+            )
+            first = merge.partitions[0]
+            fewer = [
+                one if q == first else f
+                for q, f in enumerate(found)
+                if q == first or q not in merge.partitions
+            ]
+            fewer = reassign(fewer, points, index, settings.threshold, settings.min_cells)
+            again = _measured_again(fewer, context)
+            if again is not None and len(again[0]) < len(found):
+                found, verdict = again
+                break
+        else:
+            return found, verdict
+    return found, verdict
 
 
 def _measured_again(found: list[Found], context: MapContext) -> tuple[list[Found], Verdict] | None:
