@@ -397,7 +397,7 @@ def _compute(
     else:
         thorough = _wider(registrar)
 
-    # every hypothesis of the call, remembered for the last pass (:func:`_rechosen`)
+    # every hypothesis of the call, remembered for the last offers (:func:`_rechosen`)
     hypotheses: list[tuple[Candidate, ...]] = []
     registrar = Recorded(registrar, hypotheses)
     if thorough is not None:
