@@ -668,8 +668,8 @@ def _fewest(
     (:func:`~brokenness.measure.refine.refit_transform`), every cell goes to its best
     partition (:func:`~brokenness.measure.partitions.reassign`), and the tests of
     :func:`_real` and :func:`_explained_and_judged` run again. The first merge after which
-    the map is still measured, with fewer partitions, is kept, and the merges are sought
-    again among the new partitions; else ``found`` and ``verdict`` are returned.
+    the map is still measured, and those tests drop no partition, is kept, and the merges
+    are sought again among the new partitions; else ``found`` and ``verdict`` are returned.
     """
     points, index, settings = context.points, context.index, context.settings
     while len(found) > 1:
@@ -697,7 +697,7 @@ def _fewest(
             ]
             fewer = reassign(fewer, points, index, settings.threshold, settings.min_cells)
             again = _measured_again(fewer, context)
-            if again is not None and len(again[0]) < len(found):
+            if again is not None and len(again[0]) == len(fewer):
                 found, verdict = again
                 break
         else:

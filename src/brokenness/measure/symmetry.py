@@ -18,7 +18,7 @@ all but fewer than the smallest partition's cells (``min_cells``) in total: the 
 it would replace would not hold, between them, the cells that a partition must explain on
 its own. The measure
 (:func:`brokenness.compute_brokenness`) replaces them by one partition of that transform
-if the map is still measured (README step 10).
+if the map is still measured and no other partition is dropped (README step 10).
 
 Two parts of a broken map whose transforms differ by a symmetry of the reference are one
 partition by the definition (one transform makes both consistent); for parts bumped at
