@@ -122,10 +122,9 @@ def merges(
     the test of :func:`~brokenness.measure.partitions.merge_target`); the partitions it
     explains are taken in order of the cells they would lose (the cells that agree under
     their own transform and not under it), fewest first, while the total lost stays under
-    ``settings.min_cells``. A transform that explains two
-    partitions or more is a merge; they are ranked by the partitions they replace (most
-    first), then the cells lost (fewest first), then the order of the partition and of the
-    motion.
+    ``settings.min_cells``. A transform that explains two partitions or more is a merge;
+    merges are ranked by the partitions they replace (most first), then the cells lost
+    (fewest first), then the order of the partition and of the motion.
 
     Parameters
     ----------
