@@ -46,8 +46,9 @@ same thing:
 - :func:`split_part_drawn_maps`: the atrium drawn by ``benchmarks/drawn_buildings.py`` (a
   hall with five corridors 72 degrees apart) broken into 6 partitions (case
   ``plan-atrium_d5_s0``), in which a part of 21 % of the cells was held as three pieces,
-  each at a twin of its place among the turned arms, and the degree comes out 7: a known
-  failure (session 27; a join of such pieces fixed it and was not kept, for its cost).
+  each at a twin of its place among the turned arms, and the degree came out 7 (session 27;
+  a join of such pieces fixed it and was not kept, for its cost); step 10 makes the pieces
+  one partition (session 37).
 - :func:`tied_twin_drawn_maps`: the open-plan office drawn by ``benchmarks/drawn_buildings.py``
   broken into 8 partitions (case ``plan-office_d7_s0``), in which a part of 7 % of the cells
   was held 700 cells off, where it explains as many cells as at its true place (which the

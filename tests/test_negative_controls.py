@@ -357,18 +357,12 @@ def test_a_part_found_at_its_place_replaces_its_twin():
     _all_true(twin_replaced_real_log_maps())
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known limitation (README, 'Buildings drawn in code'): a part held as three pieces, "
-    "each at a twin of its place, is counted three times",
-)
 def test_pieces_of_one_part_held_at_twins_are_one_partition():
     """A part of 21 % of a drawn atrium's cells (five corridors 72 degrees apart) held as
     three partitions, each at a twin of its place among the turned arms: together they
-    explain what the part does, so no count of explained cells tells them from it. Today
-    degree 7 for 5; a join of such pieces (each registered with its neighbours) fixed it in
-    session 27 and was not kept for its cost (README); a fix makes this pass and the mark
-    must go."""
+    explain what the part does, so no count of explained cells tells them from it. One
+    transform, a piece's followed by a turn of the reference onto itself, explains all three:
+    step 10 makes them one partition (session 37; degree 7 for 5 before)."""
     from _controls import split_part_drawn_maps
 
     _all_true(split_part_drawn_maps())
