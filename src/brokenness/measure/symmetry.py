@@ -3,7 +3,7 @@
 The degree of brokenness is the *least* number of partitions, less one, into which the map
 splits with each partition consistent with the reference (Birk 2010, Definition 1). In a
 building whose plan repeats itself under a rigid motion, a *symmetry* of the reference (the
-drawn atrium of five corridors 72 degrees apart; two mirrored wings), a part of the map fits
+drawn atrium of five corridors 72 degrees apart, a hexagonal arena), a part of the map fits
 at each of its twins, and the greedy search can split one part into pieces, each held at a
 different twin. Every piece is consistent with the reference on its own, so no test of a
 partition tells it is wrong; but one transform explains all of them: the part's place, which
@@ -16,9 +16,9 @@ transform followed by every symmetry, :func:`merges` finds the partitions that i
 (most of each one's agreeing cells agree under it too) as well as their own transforms do,
 all but fewer than the smallest partition's cells (``min_cells``) in total: the partitions
 it would replace would not hold, between them, the cells that a partition must explain on
-its own. The measure
-(:func:`brokenness.compute_brokenness`) replaces them by one partition of that transform
-if the map is still measured and no other partition is dropped (README step 10).
+its own. The measure (:func:`brokenness.compute_brokenness`) replaces them by one partition
+of that transform if the map is still measured and no other partition is dropped (README
+step 10). A symmetry is a rigid motion: the mirror image of a wing is not one.
 
 Two parts of a broken map whose transforms differ by a symmetry of the reference are one
 partition by the definition (one transform makes both consistent); for parts bumped at
