@@ -38,7 +38,7 @@ def atrium(case: BrokenCase) -> tuple[OccupancyMap, OccupancyMap]:
 
 def _reference_symmetries(ref: OccupancyMap) -> tuple[list[RigidTransform], ReferenceIndex]:
     index = ReferenceIndex.build(ref)
-    registrar = make_registrar("ifmi", rotation_peaks=6, peak_ratio=0.05, translation_peaks=3)
+    registrar = make_registrar("ifmi", **recursion._IFMI_THOROUGH_OPTIONS)  # its wider search
     settings = Settings.of(BrokennessOptions(), 1000, True, True)
     prepared = registrar.prepare_reference(ref.states)
     return symmetries(registrar, prepared, index, settings), index

@@ -20,6 +20,7 @@ from .options import Settings
 from .result import NOT_OCCUPIED, UNASSIGNED, Partition
 
 __all__ = [
+    "EXPLAINED_EXCESS",
     "JOIN_SHARE",
     "Found",
     "assemble",
@@ -107,6 +108,12 @@ def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[n
     return np.asarray(labels, dtype=np.int32)
 
 
+#: A transform *explains* a set of cells when at least this share of those that chance would
+#: not put near a wall land near one under it: ``(share - q) / (1 - q) >= EXPLAINED_EXCESS``
+#: (:func:`merge_target`; the pieces of step 10, :mod:`~brokenness.measure.symmetry`).
+EXPLAINED_EXCESS = 0.5
+
+
 def merge_target(
     found: list[Found], pts: NDArray[np.float64], index: ReferenceIndex, merge_threshold: float
 ) -> int | None:
@@ -118,7 +125,7 @@ def merge_target(
     is met by many cells of a part that is really off).
     """
     q = index.chance_agreement(merge_threshold)
-    best, best_excess = None, 0.5
+    best, best_excess = None, EXPLAINED_EXCESS
     for i, f in enumerate(found):
         d = lookup_distance(index.occupied_distance, f.transform.apply(pts))
         share = float(np.count_nonzero(d <= merge_threshold)) / max(pts.shape[0], 1)

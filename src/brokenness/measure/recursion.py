@@ -681,7 +681,11 @@ def _fewest(
             joined = [found[q] for q in merge.partitions]
             members = np.sort(np.concatenate([f.members for f in joined]))
             transform = refit_transform(
-                merge.transform, points[members], index, settings.threshold, settings.loose
+                merge.transform,
+                take_rows(points, members),
+                index,
+                settings.threshold,
+                settings.loose,
             )
             one = Found(
                 transform,
@@ -689,12 +693,9 @@ def _fewest(
                 max(f.confidence for f in joined),
                 sum(f.seconds for f in joined),
             )
-            first = merge.partitions[0]
-            fewer = [
-                one if q == first else f
-                for q, f in enumerate(found)
-                if q == first or q not in merge.partitions
-            ]
+            # the merged partition where the first of them was, the others left out
+            first, others = merge.partitions[0], merge.partitions[1:]
+            fewer = [one if q == first else f for q, f in enumerate(found) if q not in others]
             fewer = reassign(fewer, points, index, settings.threshold, settings.min_cells)
             again = _measured_again(fewer, context)
             if again is not None and len(again[0]) == len(fewer):

@@ -35,18 +35,15 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import take_rows
 from ..masking import ReferenceIndex
 from ..registration.base import Registrar
 from ..transform import RigidTransform
 from .options import Settings
-from .partitions import Found
+from .partitions import EXPLAINED_EXCESS, Found
 
 __all__ = ["Merge", "merges", "symmetries"]
 
-#: A transform explains a partition when at least this share of the partition's agreeing
-#: cells that chance would not make agree agree under it too (the half of
-#: :func:`~brokenness.measure.partitions.merge_target`).
-_EXPLAINED = 0.5
 #: The reference's walls looked at to tell a hypothesis of the reference against itself from
 #: the identity: at most about this many (an even subsample).
 _MAX_WALLS = 20_000
@@ -149,7 +146,9 @@ def merges(
     p0 = index.chance_agreement(threshold)
     own = np.zeros(points.shape[0], dtype=bool)  # each cell agrees under its partition's
     for f in found:
-        own[f.members] = index.occupied_agreement(f.transform.apply(points[f.members]), threshold)
+        own[f.members] = index.occupied_agreement(
+            f.transform.apply(take_rows(points, f.members)), threshold
+        )
     agreeing = [int(np.count_nonzero(own[f.members])) for f in found]
     ranked: list[tuple[int, int, int, int, Merge]] = []
     for j, f in enumerate(found):
@@ -164,7 +163,7 @@ def merges(
                 q
                 for q in range(len(found))
                 if agreeing[q] > 0
-                and ((agreeing[q] - lost[q]) / agreeing[q] - p0) >= _EXPLAINED * (1.0 - p0)
+                and ((agreeing[q] - lost[q]) / agreeing[q] - p0) >= EXPLAINED_EXCESS * (1.0 - p0)
             ]
             taken: list[int] = []
             total = 0
