@@ -27,7 +27,9 @@ Stages (README step numbers):
 - ``pooled``: step 8's count of every hypothesis of the call as a new partition ("... and
   as new partitions") is left out;
 - ``symmetry``: step 10 (pieces at twins that a symmetry of the reference relates made one
-  partition) is left out.
+  partition) is left out;
+- ``replication``: step 11 (a map measured mostly on partitions in doubt must be measured
+  with its grid turned by a half turn too) is left out.
 
 Usage::
 
@@ -89,6 +91,10 @@ def _symmetry() -> None:
     recursion.symmetries = lambda *args: []  # type: ignore[assignment]
 
 
+def _replication() -> None:
+    recursion.rests_on_doubt = lambda result: False  # type: ignore[assignment]
+
+
 def _piece_rivals() -> None:
     recovery._piece_rivals = lambda *args, **kwargs: []  # type: ignore[assignment]
 
@@ -119,6 +125,7 @@ STAGES: dict[str, Callable[[], None]] = {
     "rechosen": _rechosen,
     "pooled": _pooled,
     "symmetry": _symmetry,
+    "replication": _replication,
 }
 
 

@@ -24,6 +24,8 @@ from brokenness.measure.frames import (
     in_doubt,
     in_frame,
     partitions_in_doubt,
+    rests_on_doubt,
+    shown_share,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -238,3 +240,116 @@ def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
     assert run_settings(entries) == {}  # the same options: one group
     other = entry("c.zip", 4, frames=1)
     assert "parameters" in run_settings([*entries, other])  # other options: apart
+
+
+def _rests_on(result, bounds):
+    """``result`` with one partition per ``(share of the map's cells, bound)`` in ``bounds``."""
+    n = result.occupied_cells
+    parts = tuple(
+        replace(result.partitions[0], index=i, cells=round(share * n), contradiction_bound=b)
+        for i, (share, b) in enumerate(bounds)
+    )
+    return replace(result, partitions=parts)
+
+
+@pytest.mark.parametrize(
+    ("bounds", "rests"),
+    [
+        (((0.6, 0.1), (0.39, 0.9)), False),  # the partition shown in place holds 60 %
+        (((0.5, 0.1), (0.49, 0.9)), False),  # exactly half: shown
+        (((0.45, 0.1), (0.54, 0.9)), True),
+        (((0.3, 0.2), (0.3, None), (0.39, 0.51)), True),  # no bound counts as in doubt
+    ],
+)
+def test_a_map_rests_on_doubt_when_partitions_shown_in_place_hold_under_half(
+    example, bounds, rests
+):
+    m, ref = example
+    r = _rests_on(compute_brokenness(m, ref), bounds)
+    assert rests_on_doubt(r) is rests
+    shown = sum(share for share, b in bounds if not doubtful_bound(b))
+    assert shown_share(r) == pytest.approx(shown, abs=1 / r.occupied_cells)
+    assert rests_on_doubt(replace(r, measured=False, degree=None)) is False
+
+
+@pytest.fixture(scope="module")
+def example_result(example) -> brokenness.BrokennessResult:
+    return compute_brokenness(*example)
+
+
+def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 1):
+    """``compute_brokenness`` whose own frame is the example (its result ``real``) measured
+    mostly on partitions in doubt, and whose map with its grid turned 180 degrees is (or is
+    not) measured."""
+    from brokenness.measure import recursion
+
+    m, ref = example
+    own = _rests_on(real, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
+    again = own if again_measured else replace(own, measured=False, degree=None, reason="no")
+    calls = []
+
+    def computed(map_, reference, opts):
+        calls.append(map_.shape)
+        return own if len(calls) == 1 else again
+
+    monkeypatch.setattr(recursion, "_compute", computed)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        result = compute_brokenness(m, ref, frames=frames)
+    said = [w for w in seen if issubclass(w.category, brokenness.NothingFoundWarning)]
+    return result, calls, said
+
+
+def test_a_map_measured_mostly_on_partitions_in_doubt_is_measured_again_turned(
+    example, example_result, monkeypatch
+):
+    result, calls, said = _replicated(example, example_result, monkeypatch, True)
+    assert len(calls) == 2  # its own frame, then turned 180 (the example is not square)
+    assert calls[1] == calls[0][::-1] or calls[1] == calls[0]
+    assert result.measured and result.degree == 2 and not said
+    assert result.parameters["replication_frame"] == "turned 180"
+    assert result.parameters["replication_degree"] == 2
+
+
+def test_a_map_not_measured_again_turned_is_not_measured(example, example_result, monkeypatch):
+    result, calls, said = _replicated(example, example_result, monkeypatch, False)
+    assert len(calls) == 2
+    assert result.measured is False and result.degree is None
+    assert "turned 180" in result.reason and "no" in result.reason
+    assert result.parameters["replication_degree"] is None
+    assert len(said) == 1 and "turned 180" in str(said[0].message)
+    # with other frames asked for, the same frame decides, computed once
+    result, calls, said = _replicated(example, example_result, monkeypatch, False, frames=3)
+    assert len(calls) == 3 and result.measured is False and len(said) == 1
+
+
+def test_a_map_with_its_partitions_shown_in_place_is_computed_once(
+    example, example_result, monkeypatch
+):
+    from brokenness.measure import recursion
+
+    m, ref = example
+    real = example_result
+    calls = []
+    monkeypatch.setattr(recursion, "_compute", lambda *args: calls.append(1) or real)
+    assert compute_brokenness(m, ref) is real and len(calls) == 1
+
+
+def test_cli_says_when_and_where_a_map_was_measured_again(
+    example, example_result, capsys, monkeypatch
+):
+    import brokenness.measure
+
+    replicated = _rests_on(example_result, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
+    replicated = replace(
+        replicated,
+        parameters=replicated.parameters
+        | {"replication_frame": "turned 180", "replication_degree": 2},
+    )
+    monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: replicated)
+    assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
+    out = capsys.readouterr().out
+    assert "measured again with the grid turned 180 degrees" in out and "degree 2 there" in out
+    monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: example_result)
+    assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
+    assert "measured again" not in capsys.readouterr().out

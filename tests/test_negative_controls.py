@@ -86,6 +86,25 @@ def test_another_simulated_building_gets_no_degree():
     assert not result.measured and result.degree is None
 
 
+def test_another_simulated_building_measured_on_partitions_in_doubt_is_measured_again():
+    """Simulated building 203's map turned 180 degrees against 202's reference: degree 5
+    before step 11 (its free space's upper bound 0.485, under the limit of 0.5), on six
+    partitions of which four, holding about two thirds of the map, were in doubt. Measured
+    again with its grid turned back (the map's own frame, which refuses it), it is refused
+    (step 11, session 38)."""
+    from _controls import simulated_map, simulated_reference
+
+    from brokenness.measure.frames import in_frame, shown_share
+
+    turned, _ = in_frame(simulated_map(203), "turned 180")
+    result = _not_measured(turned, simulated_reference(202))
+    assert not result.measured and result.degree is None
+    assert result.parameters["replication_frame"] == "turned 180"
+    assert result.parameters["replication_degree"] is None
+    assert "turned 180" in result.reason
+    assert shown_share(result) < MAP_SHARE  # what sent it to be measured again
+
+
 @pytest.mark.xfail(
     strict=True,
     reason="known limitation (README, 'Current status', negative controls in other grid "

@@ -353,6 +353,18 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
     )
 
 
+def _replication_line(result: BrokennessResult) -> str | None:
+    """For a measured map that rests mostly on partitions in doubt: the frame it was measured
+    in again, and its degree there (one line; ``None`` when it was not needed)."""
+    if not result.measured or "replication_frame" not in result.parameters:
+        return None
+    return (
+        "measured again with the grid "
+        f"{result.parameters['replication_frame']} degrees (most of the map is in partitions "
+        f"in doubt): degree {result.parameters['replication_degree']} there"
+    )
+
+
 def _evidence_line(result: BrokennessResult) -> str:
     """The free-space evidence the measured degree rests on, and its limit (one line)."""
     from ..measure.evidence import MAP_RATIO
@@ -437,9 +449,9 @@ def _print_summary(
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
     out.print(_evidence_line(result))
-    doubt = _doubt_line(result)
-    if doubt is not None:
-        out.print(doubt)
+    for line in (_doubt_line(result), _replication_line(result)):
+        if line is not None:
+            out.print(line)
     _frames_line(result, out)
     note = "rot°/shift (cells): map cells onto reference cells, y down, + = clockwise on screen"
     if metres:

@@ -43,6 +43,7 @@ import numpy as np
 from ..grid import UNKNOWN, OccupancyMap
 from ..transform import RigidTransform
 from .evidence import doubtful_bound
+from .explained import MAP_SHARE
 from .result import BrokennessResult, Partition
 
 __all__ = [
@@ -53,6 +54,8 @@ __all__ = [
     "in_doubt",
     "in_frame",
     "partitions_in_doubt",
+    "rests_on_doubt",
+    "shown_share",
 ]
 
 #: The frames, in the order they are tried: the map's own, then its grid turned by a half
@@ -62,6 +65,10 @@ FRAMES: tuple[str, ...] = ("own", "turned 180", "turned 90", "turned 270", "shif
 #: Unknown rows and columns added above and to the left of the map: the shifted frame (not a
 #: multiple of the registration's pooling or of the settle step's tiles).
 SHIFT: tuple[int, int] = (17, 29)
+#: The frame in which a map measured on partitions in doubt must be measured again
+#: (:func:`rests_on_doubt`): the first of the other frames, the grid turned by a half turn
+#: (every pooled image, tile and row-major order of the search laid on it differs).
+REPLICATION_FRAME = FRAMES[1]
 
 
 def in_frame(m: OccupancyMap, frame: str) -> tuple[OccupancyMap, RigidTransform]:
@@ -145,3 +152,24 @@ def partitions_in_doubt(result: BrokennessResult) -> list[Partition]:
 
 def _quarter_turns(frame: str) -> int:
     return int(frame.split()[1]) // 90
+
+
+def shown_share(result: BrokennessResult) -> float:
+    """The share of the map's occupied cells held by the partitions of ``result`` whose own
+    free space shows that they are in place (those not in :func:`partitions_in_doubt`)."""
+    shown = sum(p.cells for p in result.partitions if not doubtful_bound(p.contradiction_bound))
+    return shown / result.occupied_cells if result.occupied_cells else 0.0
+
+
+def rests_on_doubt(result: BrokennessResult) -> bool:
+    """Whether ``result`` is measured, but mostly on partitions in doubt: those whose own free
+    space shows that they are in place hold less than
+    :data:`~brokenness.measure.explained.MAP_SHARE` of the map's occupied cells
+    (:func:`shown_share`).
+
+    The judge's first rule asks the partitions to hold that share of the map; this asks it
+    of the partitions whose place is shown. Where they do not, the map's free space as a
+    whole decides, and with many small partitions placed by a greedy search its margin can
+    be thin: such a result must be found again in another grid frame
+    (:data:`REPLICATION_FRAME`, README step 11) to be measured."""
+    return result.measured and shown_share(result) < MAP_SHARE

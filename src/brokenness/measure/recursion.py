@@ -158,7 +158,16 @@ from .evidence import (
     wall_contradiction,
 )
 from .explained import MAP_SHARE, drop_unexplained, explained_share
-from .frames import FRAMES, back_to_own_frame, best_of, in_doubt, in_frame
+from .frames import (
+    FRAMES,
+    REPLICATION_FRAME,
+    back_to_own_frame,
+    best_of,
+    in_doubt,
+    in_frame,
+    rests_on_doubt,
+    shown_share,
+)
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
 from .partitions import (
@@ -322,8 +331,6 @@ def compute_brokenness(
     """
     opts = _options(options, overrides)
     with small_pages():  # fresh grids without huge-page compaction (see brokenness._memory)
-        if opts.frames == 1:
-            return _compute(map, reference, opts)
         return _in_frames(map, reference, opts)
 
 
@@ -332,38 +339,85 @@ def _in_frames(
     reference: MapLike,
     opts: BrokennessOptions,
 ) -> BrokennessResult:
-    """:func:`_compute` in the map's own frame and, if the map is measured there with a
-    partition in doubt (:func:`~brokenness.measure.frames.in_doubt`), in the next
-    ``opts.frames - 1`` grid frames too; of the results measured at the own frame's degree,
-    the best is kept (:func:`~brokenness.measure.frames.best_of`), reported in the map's own
-    cells.
+    """:func:`_compute` in the map's own frame and, where needed, in other grid frames.
 
-    Whether the map is measured is decided in its own frame, as without frames (its
-    warnings are issued as they are; the other frames' are not): the other frames only offer
-    other partitionings of a map that is measured, so they cannot give a degree where one
-    frame would give none. The result's ``parameters`` say which frame it came from
-    (``frame``) and the degree of every frame tried (``frame_degrees``, ``None`` where not
-    measured), so that a user sees how far they agree."""
+    A map measured mostly on partitions in doubt
+    (:func:`~brokenness.measure.frames.rests_on_doubt`) is measured again with its grid
+    turned by a half turn (:data:`~brokenness.measure.frames.REPLICATION_FRAME`), and is
+    measured only if it is there too (README step 11); the result's ``parameters`` then
+    say so (``replication_frame``, ``replication_degree``).
+
+    With ``opts.frames`` over 1, a map measured with a partition in doubt
+    (:func:`~brokenness.measure.frames.in_doubt`) is computed in the next ``opts.frames - 1``
+    grid frames too; of the results measured at the own frame's degree, the best is kept
+    (:func:`~brokenness.measure.frames.best_of`), reported in the map's own cells. Whether
+    the map is measured is decided in its own frame and by the replication, as without
+    frames (the own frame's warnings are issued as they are; the other frames' are not):
+    the other frames only offer other partitionings of a map that is measured, so they
+    cannot give a degree where the map's own frame would give none. The result's
+    ``parameters`` say which frame it came from (``frame``) and the degree of every frame
+    tried (``frame_degrees``, ``None`` where not measured), so that a user sees how far
+    they agree."""
     started = time.perf_counter()
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
-    results = [_compute(original, ref, once)]
-    searched = results[0].measured and in_doubt(results[0])
-    for frame in FRAMES[1 : opts.frames] if searched else ():
+    own = _compute(original, ref, once)
+    tried = FRAMES[1 : opts.frames] if own.measured and in_doubt(own) else ()
+    replicate = rests_on_doubt(own)
+    if replicate and not tried:
+        tried = (REPLICATION_FRAME,)
+    results = [own]
+    for frame in tried:
         moved, cells = in_frame(original, frame)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the map's own frame has said what there is
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
-    best = best_of(results)
-    chosen = results[best]
-    parameters = chosen.parameters | {
-        "frames": opts.frames,
-        "frame": FRAMES[best],
-        "frame_degrees": [r.degree for r in results],  # how far the frames agree
-    }
-    return replace(chosen, parameters=parameters, seconds=time.perf_counter() - started)
+    parameters: dict[str, Any] = {}
+    if replicate:
+        again = results[1 + tried.index(REPLICATION_FRAME)]
+        parameters = {"replication_frame": REPLICATION_FRAME, "replication_degree": again.degree}
+        if not again.measured:
+            return _not_replicated(own, again, parameters, time.perf_counter() - started)
+    if opts.frames == 1 and not replicate:
+        return own
+    chosen = own
+    if opts.frames > 1:
+        best = best_of(results)
+        chosen = results[best]
+        parameters |= {
+            "frames": opts.frames,
+            "frame": FRAMES[best],
+            "frame_degrees": [r.degree for r in results],  # how far the frames agree
+        }
+    return replace(
+        chosen,
+        parameters=chosen.parameters | parameters,
+        seconds=time.perf_counter() - started,
+    )
+
+
+def _not_replicated(
+    own: BrokennessResult, again: BrokennessResult, parameters: dict[str, Any], seconds: float
+) -> BrokennessResult:
+    """``own``, measured in the map's own frame mostly on partitions in doubt, made not
+    measured because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME`
+    (``again``) is not."""
+    reason = (
+        f"found in the map's own grid frame ({len(own.partitions)} partitions) but not with "
+        f"its grid {REPLICATION_FRAME} degrees ({again.reason}), and the partitions whose free "
+        f"space shows their place hold only {shown_share(own):.0%} of its occupied cells"
+    )
+    warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
+    return replace(
+        own,
+        degree=None,
+        measured=False,
+        reason=reason,
+        parameters=own.parameters | parameters,
+        seconds=seconds,
+    )
 
 
 def _compute(
@@ -488,7 +542,7 @@ def _compute(
         "working_threshold": opts.threshold,
     }
     if reason is not None:
-        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=3)
+        warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return BrokennessResult(
         degree=len(partitions) - 1 if reason is None else None,
         partitions=partitions,
