@@ -321,6 +321,8 @@ def test_a_map_not_measured_again_turned_is_not_measured(example, example_result
     # with other frames asked for, the same frame decides, computed once
     result, calls, said = _replicated(example, example_result, monkeypatch, False, frames=3)
     assert len(calls) == 3 and result.measured is False and len(said) == 1
+    assert result.parameters["frame"] == "own"
+    assert result.parameters["frame_degrees"] == [2, None, None]
 
 
 def test_a_map_with_its_partitions_shown_in_place_is_computed_once(

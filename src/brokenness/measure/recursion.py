@@ -375,22 +375,22 @@ def _in_frames(
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
     parameters: dict[str, Any] = {}
-    if replicate:
-        again = results[1 + tried.index(REPLICATION_FRAME)]
-        parameters = {"replication_frame": REPLICATION_FRAME, "replication_degree": again.degree}
-        if not again.measured:
-            return _not_replicated(own, again, parameters, time.perf_counter() - started)
-    if opts.frames == 1 and not replicate:
-        return own
-    chosen = own
+    best = best_of(results) if opts.frames > 1 else 0
     if opts.frames > 1:
-        best = best_of(results)
-        chosen = results[best]
-        parameters |= {
+        parameters = {
             "frames": opts.frames,
             "frame": FRAMES[best],
             "frame_degrees": [r.degree for r in results],  # how far the frames agree
         }
+    if replicate:
+        again = results[1 + tried.index(REPLICATION_FRAME)]
+        parameters |= {"replication_frame": REPLICATION_FRAME, "replication_degree": again.degree}
+        if not again.measured:
+            parameters["frame"] = FRAMES[0]  # the own frame's result, not measured
+            return _not_replicated(own, again, parameters, time.perf_counter() - started)
+    if not parameters:
+        return own
+    chosen = results[best]
     return replace(
         chosen,
         parameters=chosen.parameters | parameters,
