@@ -57,6 +57,7 @@ from .result import BrokennessResult, Partition
 
 __all__ = [
     "FRAMES",
+    "REPLICATION_FRAME",
     "SHIFT",
     "back_to_own_frame",
     "best_of",
