@@ -375,8 +375,9 @@ def _in_frames(
             result = _compute(moved, ref, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
     parameters: dict[str, Any] = {}
-    best = best_of(results) if opts.frames > 1 else 0
+    best = 0  # the own frame's result, unless other frames were asked for
     if opts.frames > 1:
+        best = best_of(results)
         parameters = {
             "frames": opts.frames,
             "frame": FRAMES[best],
