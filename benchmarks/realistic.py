@@ -592,8 +592,14 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         partitions_true=all_partitions_true(found, truths, labels),
         unassigned_share=float(res.unassigned_fraction),
         partitions=[
-            p.transform.to_dict() | {"cells": p.cells, "contradiction": p.contradiction}
-            for p in res.partitions
+            p.transform.to_dict()
+            | {
+                "cells": p.cells,
+                "contradiction": p.contradiction,
+                "contradiction_bound": p.contradiction_bound,
+                "true": bool(fit.any()),  # fits some true part (not necessarily one to one)
+            }
+            for p, fit in zip(res.partitions, partition_fits(found, truths, labels), strict=True)
         ],
     )
     return row
