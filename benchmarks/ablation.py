@@ -28,8 +28,8 @@ Stages (README step numbers):
   as new partitions") is left out;
 - ``symmetry``: step 10 (pieces at twins that a symmetry of the reference relates made one
   partition) is left out;
-- ``replication``: step 11 (a map measured mostly on partitions in doubt must be measured
-  with its grid turned by a half turn too) is left out.
+- ``replication``: step 11 (a map measured with a partition in doubt must be measured with
+  its grid turned by a half turn too) is left out.
 
 Usage::
 
@@ -92,7 +92,7 @@ def _symmetry() -> None:
 
 
 def _replication() -> None:
-    recursion.rests_on_doubt = lambda result: False  # type: ignore[assignment]
+    recursion.to_replicate = lambda result: False  # type: ignore[assignment]
 
 
 def _piece_rivals() -> None:

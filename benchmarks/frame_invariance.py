@@ -163,10 +163,9 @@ def with_frames(row: dict[str, Any], k: int) -> dict[str, Any]:
     not measured there or has no partition in doubt (:func:`brokenness.measure.frames.in_doubt`),
     else of the first ``k`` frames, the one :func:`brokenness.measure.frames.best_of` keeps
     (measured, at the own frame's degree). Since step 11 (session 38) every frame's result
-    here went through the public API, so a map resting mostly on partitions in doubt was
+    here went through the public API, so a map measured with a partition in doubt was
     replicated in each frame, where the library replicates only the own frame's: for those
-    maps (24 of the 1,590 realistic and drawn ones) this can keep fewer frames than
-    ``frames=k`` does."""
+    maps this can keep fewer frames than ``frames=k`` does."""
     own = row["own frame"]
     if not own["measured"] or not own.get("in_doubt", True):
         return dict(own)

@@ -24,8 +24,7 @@ from brokenness.measure.frames import (
     in_doubt,
     in_frame,
     partitions_in_doubt,
-    rests_on_doubt,
-    shown_share,
+    to_replicate,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -212,15 +211,18 @@ def test_other_frames_offer_partitionings_of_a_measured_map_never_a_degree(examp
         [
             # own: measured, its last partition in doubt
             replace(real, unassigned_cells=50, partitions=(*real.partitions[:-1], doubtful)),
-            replace(real, unassigned_cells=10, measured=False, degree=None),  # fewer left
+            # turned 180: measured (so the own frame's verdict is replicated, step 11), with
+            # fewer cells left, but at another degree
+            replace(real, unassigned_cells=10, degree=3),
             replace(real, unassigned_cells=20),  # turned 90: measured, fewer than own
         ]
     )
     monkeypatch.setattr(recursion, "_compute", lambda *args: next(per_frame))
     result = compute_brokenness(m, ref, frames=3)
     assert result.parameters["frame"] == "turned 90" and result.unassigned_cells == 20
-    assert result.parameters["frame_degrees"] == [2, None, 2]
-    assert result.measured
+    assert result.parameters["frame_degrees"] == [2, 3, 2]
+    assert result.parameters["replication_degree"] == 3
+    assert result.measured and result.degree == 2
 
 
 def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
@@ -242,7 +244,7 @@ def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
     assert "parameters" in run_settings([*entries, other])  # other options: apart
 
 
-def _rests_on(result, bounds):
+def _with_bounds(result, bounds):
     """``result`` with one partition per ``(share of the map's cells, bound)`` in ``bounds``."""
     n = result.occupied_cells
     parts = tuple(
@@ -253,23 +255,19 @@ def _rests_on(result, bounds):
 
 
 @pytest.mark.parametrize(
-    ("bounds", "rests"),
+    ("bounds", "replicate"),
     [
-        (((0.6, 0.1), (0.39, 0.9)), False),  # the partition shown in place holds 60 %
-        (((0.5, 0.1), (0.49, 0.9)), False),  # exactly half: shown
+        (((0.6, 0.1), (0.39, 0.5)), False),  # every partition shown in place (0.5: shown)
+        (((0.9, 0.1), (0.09, 0.51)), True),  # one partition in doubt, however small
         (((0.45, 0.1), (0.54, 0.9)), True),
-        (((0.3, 0.2), (0.3, None), (0.39, 0.51)), True),  # no bound counts as in doubt
+        (((0.5, 0.2), (0.49, None)), True),  # no bound counts as in doubt
     ],
 )
-def test_a_map_rests_on_doubt_when_partitions_shown_in_place_hold_under_half(
-    example, bounds, rests
-):
+def test_a_map_with_a_partition_in_doubt_is_to_be_replicated(example, bounds, replicate):
     m, ref = example
-    r = _rests_on(compute_brokenness(m, ref), bounds)
-    assert rests_on_doubt(r) is rests
-    shown = sum(share for share, b in bounds if not doubtful_bound(b))
-    assert shown_share(r) == pytest.approx(shown, abs=1 / r.occupied_cells)
-    assert rests_on_doubt(replace(r, measured=False, degree=None)) is False
+    r = _with_bounds(compute_brokenness(m, ref), bounds)
+    assert to_replicate(r) is replicate
+    assert to_replicate(replace(r, measured=False, degree=None)) is False
 
 
 @pytest.fixture(scope="module")
@@ -279,12 +277,12 @@ def example_result(example) -> brokenness.BrokennessResult:
 
 def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 1):
     """``compute_brokenness`` whose own frame is the example (its result ``real``) measured
-    mostly on partitions in doubt, and whose map with its grid turned 180 degrees is (or is
+    with partitions in doubt, and whose map with its grid turned 180 degrees is (or is
     not) measured."""
     from brokenness.measure import recursion
 
     m, ref = example
-    own = _rests_on(real, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
+    own = _with_bounds(real, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
     again = own if again_measured else replace(own, measured=False, degree=None, reason="no")
     calls = []
 
@@ -300,7 +298,7 @@ def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 
     return result, calls, said
 
 
-def test_a_map_measured_mostly_on_partitions_in_doubt_is_measured_again_turned(
+def test_a_map_measured_with_partitions_in_doubt_is_measured_again_turned(
     example, example_result, monkeypatch
 ):
     result, calls, said = _replicated(example, example_result, monkeypatch, True)
@@ -342,7 +340,7 @@ def test_cli_says_when_and_where_a_map_was_measured_again(
 ):
     import brokenness.measure
 
-    replicated = _rests_on(example_result, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
+    replicated = _with_bounds(example_result, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
     replicated = replace(
         replicated,
         parameters=replicated.parameters

@@ -94,7 +94,7 @@ def test_another_simulated_building_measured_on_partitions_in_doubt_is_measured_
     (step 11, session 38)."""
     from _controls import simulated_map, simulated_reference
 
-    from brokenness.measure.frames import in_frame, shown_share
+    from brokenness.measure.frames import in_frame, partitions_in_doubt
 
     turned, _ = in_frame(simulated_map(203), "turned 180")
     result = _not_measured(turned, simulated_reference(202))
@@ -102,7 +102,26 @@ def test_another_simulated_building_measured_on_partitions_in_doubt_is_measured_
     assert result.parameters["replication_frame"] == "turned 180"
     assert result.parameters["replication_degree"] is None
     assert "turned 180" in result.reason
-    assert shown_share(result) < MAP_SHARE  # what sent it to be measured again
+    assert partitions_in_doubt(result)  # what sent it to be measured again
+
+
+def test_a_building_no_rule_was_chosen_on_measured_with_partitions_in_doubt_is_refused():
+    """Simulated building 206's unbroken map against 211's reference, in the map's own
+    frame: two buildings of the generator that no rule of the measure was chosen on
+    (``benchmarks/fresh_controls.py``). Before session 39 it got degree 6 (free space at
+    0.42 of chance, upper bound 0.489), with partitions holding 55 % of the map shown in
+    place and five in doubt, so session 38's step 11 did not ask for it again; asked with
+    every map that has a partition in doubt, the grid turned 180 degrees refuses it."""
+    from brokenness.measure.frames import partitions_in_doubt
+    from brokenness.simulation import simulate_broken_map
+
+    m = simulate_broken_map(seed=206, degree=0).map
+    ref = simulate_broken_map(seed=211, degree=0).reference
+    result = _not_measured(m, ref)
+    assert not result.measured and result.degree is None
+    assert result.parameters["replication_frame"] == "turned 180"
+    assert result.parameters["replication_degree"] is None
+    assert partitions_in_doubt(result)
 
 
 @pytest.mark.xfail(

@@ -354,14 +354,13 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
 
 
 def _replication_line(result: BrokennessResult) -> str | None:
-    """For a measured map that rests mostly on partitions in doubt: the frame it was measured
-    in again, and its degree there (one line; ``None`` when it was not needed)."""
+    """For a measured map with a partition in doubt: the frame it was measured in again, and
+    its degree there (one line; ``None`` when it was not needed)."""
     if not result.measured or "replication_frame" not in result.parameters:
         return None
     return (
-        "measured again with the grid "
-        f"{result.parameters['replication_frame']} degrees (most of the map is in partitions "
-        f"in doubt): degree {result.parameters['replication_degree']} there"
+        f"measured again with the grid {result.parameters['replication_frame']} degrees "
+        f"(a partition is in doubt): degree {result.parameters['replication_degree']} there"
     )
 
 

@@ -69,8 +69,9 @@ class BrokennessOptions:
         and of the results measured at the own frame's degree, the one that leaves the
         fewest cells to no partition is kept (see :mod:`brokenness.measure.frames` and the
         README, "Frames"; the other frames never change the degree). Up to ``k`` times the
-        time for such a map; a map whose partitions all show their place, or that is not
-        measured in its own frame, costs one frame.
+        time for such a map, and twice with ``k`` of 1 (README step 11: such a map is
+        measured only if it is measured turned by a half turn too); a map whose partitions
+        all show their place, or that is not measured in its own frame, costs one frame.
     """
 
     method: str = "ifmi"

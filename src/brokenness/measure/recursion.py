@@ -165,8 +165,8 @@ from .frames import (
     best_of,
     in_doubt,
     in_frame,
-    rests_on_doubt,
-    shown_share,
+    partitions_in_doubt,
+    to_replicate,
 )
 from .hypotheses import best_hypothesis, rival_chance
 from .options import BrokennessOptions, Settings
@@ -341,8 +341,8 @@ def _in_frames(
 ) -> BrokennessResult:
     """:func:`_compute` in the map's own frame and, where needed, in other grid frames.
 
-    A map measured mostly on partitions in doubt
-    (:func:`~brokenness.measure.frames.rests_on_doubt`) is measured again with its grid
+    A map measured with a partition in doubt
+    (:func:`~brokenness.measure.frames.to_replicate`) is measured again with its grid
     turned by a half turn (:data:`~brokenness.measure.frames.REPLICATION_FRAME`), and is
     measured only if it is there too (README step 11); the result's ``parameters`` then
     say so (``replication_frame``, ``replication_degree``).
@@ -364,7 +364,7 @@ def _in_frames(
     once = replace(opts, frames=1)
     own = _compute(original, ref, once)
     tried = FRAMES[1 : opts.frames] if own.measured and in_doubt(own) else ()
-    replicate = rests_on_doubt(own)
+    replicate = to_replicate(own)
     if replicate and not tried:
         tried = (REPLICATION_FRAME,)
     results = [own]
@@ -402,13 +402,14 @@ def _in_frames(
 def _not_replicated(
     own: BrokennessResult, again: BrokennessResult, parameters: dict[str, Any], seconds: float
 ) -> BrokennessResult:
-    """``own``, measured in the map's own frame mostly on partitions in doubt, made not
-    measured because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME`
-    (``again``) is not."""
+    """``own``, measured in the map's own frame with a partition in doubt, made not measured
+    because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME` (``again``) is
+    not."""
+    doubtful = len(partitions_in_doubt(own))
     reason = (
-        f"found in the map's own grid frame ({len(own.partitions)} partitions) but not with "
-        f"its grid {REPLICATION_FRAME} degrees ({again.reason}), and the partitions whose free "
-        f"space shows their place hold only {shown_share(own):.0%} of its occupied cells"
+        f"found in the map's own grid frame ({len(own.partitions)} partitions, {doubtful} of "
+        "them in doubt: their free space does not show their place) but not with its grid "
+        f"{REPLICATION_FRAME} degrees ({again.reason})"
     )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(
