@@ -314,6 +314,7 @@ def test_a_map_not_measured_again_turned_is_not_measured(example, example_result
     assert len(calls) == 2
     assert result.measured is False and result.degree is None
     assert "turned 180" in result.reason and "no" in result.reason
+    assert "3 partitions, 2 of them in doubt" in result.reason
     assert result.parameters["replication_degree"] is None
     assert len(said) == 1 and "turned 180" in str(said[0].message)
     # with other frames asked for, the same frame decides, computed once
