@@ -29,7 +29,8 @@ Stages (README step numbers):
 - ``symmetry``: step 10 (pieces at twins that a symmetry of the reference relates made one
   partition) is left out;
 - ``replication``: step 11 (a map measured with a partition in doubt must be measured with
-  its grid turned by a half turn too) is left out.
+  its grid turned by a half turn too) is left out (and with it ``frames``'s other frames,
+  tried for the same maps; the stages run with ``frames=1``).
 
 Usage::
 

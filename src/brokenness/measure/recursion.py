@@ -163,7 +163,6 @@ from .frames import (
     REPLICATION_FRAME,
     back_to_own_frame,
     best_of,
-    in_doubt,
     in_frame,
     partitions_in_doubt,
     to_replicate,
@@ -363,10 +362,10 @@ def _in_frames(
     ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
     own = _compute(original, ref, once)
-    tried = FRAMES[1 : opts.frames] if own.measured and in_doubt(own) else ()
+    # a map measured with a partition in doubt: the frames asked for, the replication's
+    # (the first of them) at least
     replicate = to_replicate(own)
-    if replicate and not tried:
-        tried = (REPLICATION_FRAME,)
+    tried = FRAMES[1 : max(opts.frames, 2)] if replicate else ()
     results = [own]
     for frame in tried:
         moved, cells = in_frame(original, frame)
