@@ -31,9 +31,10 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from cases import simulated_map, simulated_reference
+
 from brokenness import compute_brokenness
 from brokenness.measure.frames import FRAMES, in_frame
-from brokenness.simulation import simulate_broken_map
 
 RESULTS = Path(__file__).resolve().parent / "results"
 #: The broken maps' degree (each against the next seed's reference).
@@ -56,8 +57,7 @@ def run(job: Job) -> dict[str, Any]:
     seed ``b``; one JSON-ready row."""
     a, da, b, frame = job
     warnings.simplefilter("ignore")
-    m = simulate_broken_map(seed=a, degree=da).map
-    reference = simulate_broken_map(seed=b, degree=0).reference
+    m, reference = simulated_map(a, da), simulated_reference(b)  # cached in each worker
     moved, _ = in_frame(m, frame)
     t0 = time.perf_counter()
     r = compute_brokenness(moved, reference)

@@ -579,6 +579,7 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         row["walks"] = walk_usage(walks)
     seconds = time.perf_counter() - t0
     found = [p.transform for p in res.partitions]
+    partitions_true = all_partitions_true(found, truths, labels)
     row.update(
         seconds=seconds,
         cpu_seconds=time.process_time() - c0,  # this worker's CPU time, all its threads
@@ -588,8 +589,8 @@ def evaluate(folder: Path, method: str = "ifmi", seed: int | None = None) -> dic
         contradiction=res.contradiction,
         contradiction_bound=res.contradiction_bound,
         exact=res.degree == truth["expected_degree"],
-        all_true=bool(res.measured) and all_partitions_true(found, truths, labels),
-        partitions_true=all_partitions_true(found, truths, labels),
+        all_true=bool(res.measured) and partitions_true,
+        partitions_true=partitions_true,
         unassigned_share=float(res.unassigned_fraction),
         partitions=[
             p.transform.to_dict()

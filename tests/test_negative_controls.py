@@ -112,12 +112,11 @@ def test_a_building_no_rule_was_chosen_on_measured_with_partitions_in_doubt_is_r
     0.42 of chance, upper bound 0.489), with partitions holding 55 % of the map shown in
     place and five in doubt, so session 38's step 11 did not ask for it again; asked with
     every map that has a partition in doubt, the grid turned 180 degrees refuses it."""
-    from brokenness.measure.frames import partitions_in_doubt
-    from brokenness.simulation import simulate_broken_map
+    from _controls import simulated_map, simulated_reference
 
-    m = simulate_broken_map(seed=206, degree=0).map
-    ref = simulate_broken_map(seed=211, degree=0).reference
-    result = _not_measured(m, ref)
+    from brokenness.measure.frames import partitions_in_doubt
+
+    result = _not_measured(simulated_map(206), simulated_reference(211))
     assert not result.measured and result.degree is None
     assert result.parameters["replication_frame"] == "turned 180"
     assert result.parameters["replication_degree"] is None
