@@ -27,8 +27,9 @@ rigid transform (rotation + translation, scale 1):
    66 % for the highest peak being some part's angle). Because the
    magnitude of a real image is point-symmetric, angles are only known modulo 180 degrees:
    each of the ``rotation_peaks`` best peaks yields two hypotheses, ``t`` and ``t + 180``.
-3. **Translation.** For each hypothesis the moving image is rotated (``cv2.warpAffine``)
-   and phase-correlated with the reference; both are zero-padded to at least the sum of
+3. **Translation.** For each hypothesis the moving image is rotated (``cv2.remap`` of a
+   map computed in numpy, which gives the same bits on any number of threads) and
+   phase-correlated with the reference; both are zero-padded to at least the sum of
    their extents (even sizes OpenCV transforms fast) so that no shift wraps around. The
    180-degree twin needs no second forward FFT: flipping a real image through the origin
    conjugates its spectrum (OpenCV's real DFT in its packed layout, see
@@ -48,7 +49,10 @@ Transforms map moving cells ``(x, y) = (column, row)`` onto reference cells
 (:mod:`brokenness.transform`): the rotation about the image centre used in 3 and the
 offsets of the crops and pooling are folded into the canonical ``x' = R x + t``.
 
-Everything is deterministic: no random numbers, fixed subsampling, ties broken by index.
+Everything is deterministic: no random numbers, fixed subsampling, ties broken by index, and
+no OpenCV call whose result depends on its number of threads (``cv2.warpAffine``'s bilinear
+warp and ``cv2.meanStdDev`` of a large image do: see :func:`_draw_turned`), so a batch worker
+on one thread and a call on every core give the same bits.
 
 References
 ----------
@@ -156,6 +160,41 @@ def _shift(tx: float, ty: float) -> NDArray[np.float64]:
 
 def _scale(s: float) -> NDArray[np.float64]:
     return np.array([[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _draw_turned(
+    image: NDArray[np.float32],
+    theta: float,
+    shift: NDArray[np.float64],
+    canvas: NDArray[np.float32],
+) -> None:
+    """Draw ``image`` turned by ``theta`` about the origin, then shifted by ``shift``, into
+    ``canvas`` (bilinear, zero where no cell of ``image`` lands), in place.
+
+    ``cv2.remap`` of the inverse map, computed here in numpy: every canvas cell is
+    interpolated on its own, so the canvas has the same bits whatever the number of OpenCV
+    threads. ``cv2.warpAffine`` does not guarantee that: its bilinear warp of a float image
+    gave other bits on one thread than on two or more (canvases of about 200 cells and up),
+    so a batch worker (one thread) and ``brokenness compute`` (a thread per core) gave
+    transforms that differed in their last digits, and could decide differently.
+    """
+    c, s = math.cos(theta), math.sin(theta)
+    # canvas cell (u, v) shows image point R^T ((u, v) - shift): x = c du + s dv, y = -s du + c dv
+    du = np.arange(canvas.shape[1], dtype=np.float64) - shift[0]
+    dv = np.arange(canvas.shape[0], dtype=np.float64) - shift[1]
+    map_x = np.add.outer((s * dv).astype(np.float32), (c * du).astype(np.float32))
+    map_y = np.add.outer((c * dv).astype(np.float32), (-s * du).astype(np.float32))
+    drawn = cv2.remap(
+        image,
+        map_x,
+        map_y,
+        cv2.INTER_LINEAR,
+        dst=canvas,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0.0,
+    )
+    if drawn is not canvas:  # a new image (OpenCV makes none for this type and size)
+        canvas[...] = drawn
 
 
 def _placement(points: NDArray[np.float64], matrix: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -838,17 +877,7 @@ class IFMIRegistrar:
             # the shift is rounded so that theta = 0 is an exact (interpolation-free) copy
             t = np.round(centre_c - rot[:2, :2] @ centre_m)
             to_canvas = _shift(t[0], t[1]) @ rot
-            drawn = cv2.warpAffine(
-                g,
-                to_canvas[:2].astype(np.float64),
-                (side, side),
-                dst=canvas,
-                flags=cv2.INTER_LINEAR,
-                borderMode=cv2.BORDER_CONSTANT,
-                borderValue=0.0,
-            )
-            if drawn is not canvas:  # a new image (OpenCV makes none for this type and size)
-                canvas[...] = drawn
+            _draw_turned(g, theta, t, canvas)
             spec = _spectral.padded_spectrum(padded_canvas)
             for twin in (False, True):
                 # the flipped canvas has the conjugate spectrum: correlate without conjugating
@@ -882,8 +911,10 @@ class IFMIRegistrar:
         masked out in it before the next is looked for.
         """
         # statistics of the surface from a fixed subsample (speed), shared by its peaks
-        mean, std = cv2.meanStdDev(np.ascontiguousarray(surface[::4, ::4]))
-        level = (float(mean[0, 0]), float(std[0, 0]))
+        # (numpy's sums: cv2.meanStdDev sums a large image on several threads, in an order
+        # that depends on their number)
+        sample = surface[::4, ::4]
+        level = (float(np.mean(sample, dtype=np.float64)), float(np.std(sample, dtype=np.float64)))
         if count == 1:
             return [cls._peak(surface, level)]
         work = surface  # masked in place: no copy of the surface

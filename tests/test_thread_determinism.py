@@ -1,0 +1,86 @@
+"""Results do not depend on how many threads OpenCV runs.
+
+A batch worker runs OpenCV on one thread (``brokenness._threads``), ``brokenness compute``
+on one per core, and machines differ in cores: the same pair must give the same bits in
+all of them. ``cv2.warpAffine``'s bilinear warp of a float image does not (it gave other
+bits on one thread than on two or more, from canvases of about 200 cells), so iFMI draws
+its turned images with ``cv2.remap`` of a map computed in numpy (``_draw_turned``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator
+
+import cv2
+import numpy as np
+import pytest
+
+from brokenness.registration.ifmi import _draw_turned
+
+
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
+
+
+def _walls(shape: tuple[int, int], seed: int) -> np.ndarray:
+    """A float32 image of a few hundred straight wall segments (what iFMI turns)."""
+    rng = np.random.default_rng(seed)
+    img = np.zeros(shape, np.uint8)
+    for _ in range(300):
+        x0, y0 = rng.integers(0, shape[1]), rng.integers(0, shape[0])
+        length, angle = rng.integers(5, 60), rng.choice([0.0, math.pi / 2, rng.uniform(0, math.pi)])
+        x1, y1 = int(x0 + length * math.cos(angle)), int(y0 + length * math.sin(angle))
+        cv2.line(img, (int(x0), int(y0)), (x1, y1), 1, 1)
+    return img.astype(np.float32)
+
+
+def _drawn(image: np.ndarray, theta: float, side: int) -> np.ndarray:
+    h, w = image.shape
+    centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
+    c, s = math.cos(theta), math.sin(theta)
+    shift = np.round(centre_c - np.array([[c, -s], [s, c]]) @ centre_m)
+    canvas = np.zeros((side + 7, side + 5), np.float32)[:side, :side]  # a view, as iFMI's
+    _draw_turned(image, theta, shift, canvas)
+    return canvas.copy()
+
+
+@pytest.mark.parametrize("degrees", [0.3, 17.0, 93.7, 180.0, -61.2])
+def test_turned_image_has_the_same_bits_on_any_number_of_threads(degrees: float) -> None:
+    image = _walls((380, 420), seed=int(degrees * 10) % 97)
+    side = math.ceil(math.hypot(*image.shape)) + 2
+    theta = math.radians(degrees)
+    with opencv_threads(1):
+        one = _drawn(image, theta, side)
+    for n in (2, 4, 8):
+        with opencv_threads(n):
+            assert _drawn(image, theta, side).tobytes() == one.tobytes(), n
+    assert one.sum() > 0.9 * image.sum()  # the image is on the canvas, not cut off
+
+
+def test_turned_image_is_the_warp_of_the_image() -> None:
+    """The same geometry as ``cv2.warpAffine`` of the forward matrix (bilinear, 1/32 cell):
+    at most one sub-cell step of interpolation apart, cell by cell."""
+    image = _walls((300, 260), seed=3)
+    side = math.ceil(math.hypot(*image.shape)) + 2
+    for degrees in (0.0, 12.5, 90.0, 147.0):
+        theta = math.radians(degrees)
+        h, w = image.shape
+        c, s = math.cos(theta), math.sin(theta)
+        centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+        shift = np.round(np.array([(side - 1) / 2.0] * 2) - np.array([[c, -s], [s, c]]) @ centre)
+        forward = np.array([[c, -s, shift[0]], [s, c, shift[1]]])
+        with opencv_threads(1):
+            warped = cv2.warpAffine(image, forward, (side, side), flags=cv2.INTER_LINEAR)
+        drawn = _drawn(image, theta, side)
+        assert np.abs(drawn - warped).max() <= 1.0 / 16.0, degrees
+        if degrees == 0.0:  # a whole-cell shift: an exact copy
+            assert np.array_equal(drawn, warped)
