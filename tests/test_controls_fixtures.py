@@ -7,11 +7,15 @@ claim. What ``compute_brokenness`` returns on them is for the tests of the algor
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from _controls import broken_real_log_maps, negative_controls
-from cases import control_sources, negative_control_pairs, same_place_pairs
+from cases import control_sources, negative_control_pairs, same_place_pairs, turned_map
 
+from brokenness import load_map
+from brokenness.grid import UNKNOWN
 from brokenness.masking import ReferenceIndex, cell_points
 
 
@@ -25,6 +29,23 @@ def test_controls_pair_different_places_and_same_place_pairs_are_apart() -> None
     assert not set(same) & set(full)
     if "willow_stage" in sources:
         assert ("willow_slam", "willow_stage") in same
+
+
+def test_a_turned_control_map_holds_the_whole_map_in_a_frame_of_its_own() -> None:
+    """``negative_controls.py --turn``: no turn is the map shifted by whole cells; a turn
+    keeps every wall on the canvas (nearest neighbour: about as many occupied cells)."""
+    m = load_map(Path(__file__).parent / "data" / "tb3_sandbox.yaml")
+    h, w = m.shape
+    same = turned_map(m, 0.0)
+    assert same.shape == (h + 20, w + 20) and same.resolution == m.resolution
+    assert np.array_equal(same.states[13 : 13 + h, 17 : 17 + w], m.states)
+    assert np.count_nonzero(same.states != UNKNOWN) == np.count_nonzero(m.states != UNKNOWN)
+    turned = turned_map(m, 37.0)
+    assert abs(turned.n_occupied - m.n_occupied) < 0.15 * m.n_occupied
+    known = np.argwhere(turned.states != UNKNOWN)
+    assert known.min() > 0 and (known.max(axis=0) < np.array(turned.shape) - 1).all()
+    # turned: the map's walls are no longer along the grid (tb3's are)
+    assert not np.array_equal(turned.states[13 : 13 + h, 17 : 17 + w], m.states)
 
 
 def test_the_negative_control_fixtures_are_maps_with_walls() -> None:
