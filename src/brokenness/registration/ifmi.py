@@ -167,9 +167,12 @@ def _draw_turned(
     theta: float,
     shift: NDArray[np.float64],
     canvas: NDArray[np.float32],
+    maps: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
 ) -> None:
     """Draw ``image`` turned by ``theta`` about the origin, then shifted by ``shift``, into
-    ``canvas`` (bilinear, zero where no cell of ``image`` lands), in place.
+    ``canvas`` (bilinear, zero where no cell of ``image`` lands), in place. ``maps``: two
+    float32 arrays of the canvas's shape to compute the map in (new ones if not given; a
+    caller that draws many angles on one canvas gives them once).
 
     ``cv2.remap`` of the inverse map, computed here in numpy: every canvas cell is
     interpolated on its own, so the canvas has the same bits whatever the number of OpenCV
@@ -182,8 +185,11 @@ def _draw_turned(
     # canvas cell (u, v) shows image point R^T ((u, v) - shift): x = c du + s dv, y = -s du + c dv
     du = np.arange(canvas.shape[1], dtype=np.float64) - shift[0]
     dv = np.arange(canvas.shape[0], dtype=np.float64) - shift[1]
-    map_x = np.add.outer((s * dv).astype(np.float32), (c * du).astype(np.float32))
-    map_y = np.add.outer((c * dv).astype(np.float32), (-s * du).astype(np.float32))
+    if maps is None:
+        maps = (np.empty(canvas.shape, np.float32), np.empty(canvas.shape, np.float32))
+    map_x, map_y = maps
+    np.add.outer((s * dv).astype(np.float32), (c * du).astype(np.float32), out=map_x)
+    np.add.outer((c * dv).astype(np.float32), (-s * du).astype(np.float32), out=map_y)
     drawn = cv2.remap(
         image,
         map_x,
@@ -870,6 +876,7 @@ class IFMIRegistrar:
         # corner (every cell of which the warp writes), the padding stays zero
         padded_canvas = np.zeros(padded, dtype=np.float32)
         canvas = padded_canvas[:side, :side]
+        maps = (np.empty((side, side), np.float32), np.empty((side, side), np.float32))
         for theta in thetas:
             out: list[tuple[NDArray[np.float64], float]] = found.setdefault(theta, [])
             rot = _rot(theta)
@@ -877,7 +884,7 @@ class IFMIRegistrar:
             # the shift is rounded so that theta = 0 is an exact (interpolation-free) copy
             t = np.round(centre_c - rot[:2, :2] @ centre_m)
             to_canvas = _shift(t[0], t[1]) @ rot
-            _draw_turned(g, theta, t, canvas)
+            _draw_turned(g, theta, t, canvas, maps)
             spec = _spectral.padded_spectrum(padded_canvas)
             for twin in (False, True):
                 # the flipped canvas has the conjugate spectrum: correlate without conjugating
