@@ -15,6 +15,8 @@ therefore run on one thread each:
   environment is restored afterwards; a variable the user set is left as it is.
 
 The process that evaluates pairs itself (``workers=1``) keeps the libraries' defaults.
+Either way the results are the same, bit for bit: no call on the measure's path gives other
+bits on another number of threads (``tests/test_thread_determinism.py``).
 """
 
 from __future__ import annotations
