@@ -46,6 +46,8 @@ import numpy as np
 
 from brokenness import OccupancyMap, load_map, resample_to_resolution, simulate_broken_map
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
+from brokenness.report.repair import align_map
+from brokenness.transform import RigidTransform
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The shared data folder (``../shared/data`` next to the repository; override with
@@ -208,19 +210,17 @@ def turned_map(m: OccupancyMap, degrees: float) -> OccupancyMap:
     """``m`` turned by ``degrees`` (counter-clockwise on screen) about its centre and shifted
     by a few cells, on a canvas that holds all of it (unknown around it): a map in a frame of
     its own at any angle, as a SLAM run that starts anywhere makes it. Each cell takes the
-    state of the nearest cell of ``m`` (``cv2.warpAffine``, nearest neighbour: the same
+    state of the nearest cell of ``m`` (:func:`brokenness.report.repair.align_map`: the same
     cells on any number of threads)."""
-    states = np.asarray(m.states)
-    h, w = states.shape
+    h, w = m.shape
     a = math.radians(degrees)
     c, s = abs(math.cos(a)), abs(math.sin(a))
     width, height = math.ceil(w * c + h * s) + 20, math.ceil(w * s + h * c) + 20
     matrix = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), degrees, 1.0)
     matrix[0, 2] += (width - w) / 2.0 + 7.0  # and a shift that is no whole turn of the grid
     matrix[1, 2] += (height - h) / 2.0 + 3.0
-    shifted = (states.astype(np.int16) - UNKNOWN).astype(np.uint8)  # unknown is 0
-    out = cv2.warpAffine(shifted, matrix, (width, height), flags=cv2.INTER_NEAREST, borderValue=0)
-    return OccupancyMap((out.astype(np.int16) + UNKNOWN).astype(np.int8), resolution=m.resolution)
+    canvas = OccupancyMap(np.full((height, width), UNKNOWN, np.int8), resolution=m.resolution)
+    return align_map(m, RigidTransform.from_matrix(matrix), canvas)
 
 
 # -- the sources and pairs ----------------------------------------------------------------------
