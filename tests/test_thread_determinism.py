@@ -44,14 +44,20 @@ def _walls(shape: tuple[int, int], seed: int) -> np.ndarray:
     return img.astype(np.float32)
 
 
-def _drawn(image: np.ndarray, theta: float, side: int) -> np.ndarray:
+def _forward(image: np.ndarray, theta: float, side: int) -> np.ndarray:
+    """The 2x3 matrix of iFMI's drawing: ``image`` turned by ``theta`` about its centre into
+    the centre of a ``side`` x ``side`` canvas, the shift rounded to whole cells."""
     h, w = image.shape
-    centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
-    centre_c = np.array([(side - 1) / 2.0, (side - 1) / 2.0])
     c, s = math.cos(theta), math.sin(theta)
-    shift = np.round(centre_c - np.array([[c, -s], [s, c]]) @ centre_m)
+    turn = np.array([[c, -s], [s, c]])
+    centre_m = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    shift = np.round(np.full(2, (side - 1) / 2.0) - turn @ centre_m)
+    return np.column_stack([turn, shift])
+
+
+def _drawn(image: np.ndarray, theta: float, side: int) -> np.ndarray:
     canvas = np.zeros((side + 7, side + 5), np.float32)[:side, :side]  # a view, as iFMI's
-    _draw_turned(image, theta, shift, canvas)
+    _draw_turned(image, theta, _forward(image, theta, side)[:, 2], canvas)
     return canvas.copy()
 
 
@@ -75,11 +81,7 @@ def test_turned_image_is_the_warp_of_the_image() -> None:
     side = math.ceil(math.hypot(*image.shape)) + 2
     for degrees in (0.0, 12.5, 90.0, 147.0):
         theta = math.radians(degrees)
-        h, w = image.shape
-        c, s = math.cos(theta), math.sin(theta)
-        centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
-        shift = np.round(np.array([(side - 1) / 2.0] * 2) - np.array([[c, -s], [s, c]]) @ centre)
-        forward = np.array([[c, -s, shift[0]], [s, c, shift[1]]])
+        forward = _forward(image, theta, side)
         with opencv_threads(1):
             warped = cv2.warpAffine(image, forward, (side, side), flags=cv2.INTER_LINEAR)
         drawn = _drawn(image, theta, side)
