@@ -310,7 +310,8 @@ def control_sources() -> dict[str, ControlSource]:
     return out
 
 
-def _real(sources: dict[str, ControlSource]) -> list[str]:
+def real_sources(sources: dict[str, ControlSource]) -> list[str]:
+    """The names of the real maps and logs among ``sources``."""
     return [n for n, s in sources.items() if s.kind in ("real", "log")]
 
 
@@ -327,7 +328,7 @@ def negative_control_pairs(
     control, real pairs both ways).
     """
     sources = control_sources() if sources is None else sources
-    real = _real(sources)
+    real = real_sources(sources)
     synthetic = [n for n, s in sources.items() if s.kind == "synthetic"]
     pairs: list[tuple[str, str]] = []
     if quick:
@@ -382,7 +383,7 @@ def same_place_pairs(sources: dict[str, ControlSource] | None = None) -> list[tu
     measured (their degree is not known).
     """
     sources = control_sources() if sources is None else sources
-    real = _real(sources)
+    real = real_sources(sources)
     return [(a, b) for a in real for b in real if a != b and sources[a].place == sources[b].place]
 
 

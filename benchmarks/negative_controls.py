@@ -48,6 +48,7 @@ from cases import (  # noqa: E402
     ROOT,
     control_sources,
     negative_control_pairs,
+    real_sources,
     same_place_pairs,
     save_control_maps,
     turned_map,
@@ -196,8 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     sources = control_sources()
     controls = negative_control_pairs(args.quick, sources)
     if args.real_only:
-        real = ("real", "log")
-        controls = [p for p in controls if all(sources[n].kind in real for n in p)]
+        real = set(real_sources(sources))
+        controls = [p for p in controls if set(p) <= real]
     same = [] if args.no_same_place else same_place_pairs(sources)
     if args.quick:
         same = [p for p in same if p in (("willow_slam", "willow_stage"),)]
