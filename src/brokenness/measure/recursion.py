@@ -133,6 +133,7 @@ import os
 import time
 import warnings
 from dataclasses import dataclass, fields, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -181,6 +182,7 @@ from .partitions import (
 )
 from .pool import Recorded, offered, recorded_transforms
 from .recovery import drop_incoherent, pooled_partitions, recover, relocation_rivals
+from .reference import ReferenceWork, WorkingReference
 from .refine import refit_transform
 from .result import BrokennessResult, Partition
 from .settle import settle
@@ -361,7 +363,8 @@ def _in_frames(
     original = _as_map(map, "map")
     ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
-    own = _compute(original, ref, once)
+    work = ReferenceWork(ref)  # the reference's share, made once for every frame
+    own = _compute(original, work, once)
     # a map measured with a partition in doubt: the frames asked for, the replication's
     # (the first of them) at least
     replicate = to_replicate(own)
@@ -371,7 +374,7 @@ def _in_frames(
         moved, cells = in_frame(original, frame)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the map's own frame has said what there is
-            result = _compute(moved, ref, once)
+            result = _compute(moved, work, once)
         results.append(back_to_own_frame(result, frame, cells, original, ref))
     parameters: dict[str, Any] = {}
     best = 0  # the own frame's result, unless other frames were asked for
@@ -422,25 +425,27 @@ def _not_replicated(
 
 
 def _compute(
-    map: MapLike,  # noqa: A002 - the paper's name
-    reference: MapLike,
+    original: OccupancyMap,
+    work: ReferenceWork,
     opts: BrokennessOptions,
 ) -> BrokennessResult:
-    """:func:`compute_brokenness` in the map's own frame."""
+    """:func:`compute_brokenness` of ``original`` in its own frame, against the reference of
+    ``work`` (what the call makes of the reference alone, shared by its frames)."""
     started = time.perf_counter()
-    original = _as_map(map, "map")
-    ref = _as_map(reference, "reference")
+    ref = work.reference
     original_points = cell_points(original.occupied)  # (N, 2), row-major order
     n_occupied = original_points.shape[0]
     if n_occupied == 0:
         raise MapError("the map has no occupied cell: nothing to measure")
     if not ref.occupied.any():
         raise MapError("the reference map has no occupied cell")
-    working, to_working, working_ref, to_reference = _common_resolution(original, ref)
+    working, to_working, working_ref = _common_resolution(original, work)
+    to_reference = working_ref.to_reference
     asked = opts
     opts = _at_working_resolution(opts, original, working)
-    check_threshold(opts.threshold, working_ref.shape)  # the neighbourhood it implies fits
-    index = ReferenceIndex.build(working_ref)
+    # the neighbourhood the threshold implies fits the reference
+    check_threshold(opts.threshold, working_ref.reference.shape)
+    index = working_ref.index
     method = opts.method
     kwargs: dict[str, Any] = dict(_IFMI_RECURSION_OPTIONS) if method == "ifmi" else {}
     kwargs.update(opts.registration_kwargs)
@@ -497,7 +502,9 @@ def _compute(
     # the reference's symmetries (step 10), while it is prepared; not recorded as hypotheses
     motions: list[RigidTransform] = []
     if method == "ifmi" and len(found) > 1 and isinstance(thorough, Recorded):
-        motions = symmetries(thorough.registrar, whole, index, settings)
+        key = (settings.max_candidates, settings.threshold)  # what symmetries reads
+        search = partial(symmetries, thorough.registrar, whole, index, settings)
+        motions = working_ref.symmetries(key, search)
     del whole  # the prepared reference (its distance map): no registration now
     found, verdict, evidence = _explained_and_judged(found, context, evidence)
     if verdict.reason is None:  # measured: every hypothesis of the call, offered once more
@@ -927,11 +934,12 @@ def _options(options: BrokennessOptions | None, overrides: dict[str, Any]) -> Br
 
 
 def _common_resolution(
-    m: OccupancyMap, ref: OccupancyMap
-) -> tuple[OccupancyMap, RigidTransform, OccupancyMap, RigidTransform]:
+    m: OccupancyMap, work: ReferenceWork
+) -> tuple[OccupancyMap, RigidTransform, WorkingReference]:
     """Map and reference at the finer of their two resolutions: ``(working map, original
-    map cells -> working map cells, working reference, working reference cells -> reference
-    cells)``.
+    map cells -> working map cells, working reference)`` (the reference of ``work``, and the
+    transform of its cells to the reference's, :class:`~brokenness.measure.reference.
+    WorkingReference`).
 
     The coarser of the two is resampled (:func:`~brokenness.io.resample.resample_to_resolution`):
     a coarser map is upsampled to the reference's cells, a coarser reference to the map's.
@@ -945,12 +953,13 @@ def _common_resolution(
     map downsampled to it.
     """
     identity = RigidTransform.identity()
+    ref = work.reference
     if (
         m.resolution is None
         or ref.resolution is None
         or math.isclose(m.resolution, ref.resolution, rel_tol=1e-9)
     ):
-        return m, identity, ref, identity
+        return m, identity, work.at(None)
     from ..io.resample import cell_scale_offset, resample_to_resolution, resampled_size
     from ..limits import max_cells
 
@@ -958,12 +967,10 @@ def _common_resolution(
         scale = ref.resolution / m.resolution
         rows, cols = (resampled_size(n, scale) for n in ref.shape)
         if rows * cols <= max_cells():
-            fine_ref = resample_to_resolution(ref, m.resolution)
-            s, tx, ty = cell_scale_offset(ref, fine_ref)
-            return m, identity, fine_ref, RigidTransform(0.0, tx, ty, s).inverse()
+            return m, identity, work.at(m.resolution)
     working = resample_to_resolution(m, ref.resolution)
     s, tx, ty = cell_scale_offset(m, working)
-    return working, RigidTransform(0.0, tx, ty, s), ref, identity
+    return working, RigidTransform(0.0, tx, ty, s), work.at(None)
 
 
 def _at_working_resolution(
