@@ -91,9 +91,11 @@ rival as it is given. Of the partitions settled, those whose free space does not
 they are in place are registered alone again, with their neighbourhood, and each of them
 together with every partition that touches it in the map: the recursion can split a small
 part into two pieces, each at a twin, and only their union carries enough of the part to
-give its place. After the settle step, the recovery runs
-again while it finds new partitions (the recursion's ``RECOVERY_ROUNDS``), if the tests
-after it changed the partitions: settled transforms leave clearer suspects.
+give its place. The cells of every other partition are registered alone too (a twin of a
+room can show its free space in place as well as the room does). After the settle step,
+the recovery runs again while it finds new partitions (the recursion's
+``RECOVERY_ROUNDS``), if the tests after it changed the partitions: settled transforms
+leave clearer suspects.
 
 On the 160 simulated maps of degrees 2-5 of ``benchmarks/accuracy.py``, the recovery (with
 :func:`~brokenness.measure.partitions.consolidate`) gives the exact degree in 145 maps
@@ -854,11 +856,15 @@ def relocation_rivals(
     (:func:`~brokenness.measure.evidence.free_space` of ``found``), its cells are also placed
     at every translation at the rotations of their hypotheses, and the placement that
     explains them about as well and whose free space crosses the reference's walls least is
-    a rival too (:func:`~brokenness.measure.placement.free_placement`); and so are the cells
-    of every partition that ``which`` leaves out, with no registration, at the opposite of
-    its own rotation (the twin of a stretch of corridor or of a symmetric room is most often
-    half a turn away, and a partition whose free space passes on its own may still stand at
-    one). A searched partition and one whose cells touch its own may be two pieces of one part,
+    a rival too (:func:`~brokenness.measure.placement.free_placement`). The cells of every
+    partition that ``which`` leaves out are registered alone too (no neighbourhood), and
+    placed at the opposite of their own rotation only (the twin of a stretch of corridor or
+    of a symmetric room is most often half a turn away): a partition whose free space
+    passes on its own may still stand at a twin, a room like its own whose free space
+    looks the same (session 41: a drawn atrium of degree 6, a part of 4.5 % held 144 cells
+    off at the half-turned twin of its room, its free space at 0.46 of the chance rate, its
+    own cells registered alone gave its place second among their hypotheses). A searched
+    partition and one whose cells touch its own may be two pieces of one part,
     each at a twin: their union is registered too (:func:`_piece_rivals`). Each rival is given
     as found and refitted on the partition's cells
     (:func:`~brokenness.measure.refine.refit_transform`).
@@ -886,8 +892,9 @@ def _relocations(
     space crosses the reference's walls least
     (:func:`~brokenness.measure.placement.free_placement`): of the partitions ``which``
     gives, at their own rotation and those of their hypotheses; if ``place_every``, of the
-    others too, at the opposite of their own rotation. None for a lone partition: its cells
-    are what the first step registered."""
+    others too, at the opposite of their own rotation, with the best hypothesis of their own
+    cells registered alone. None for a lone partition: its cells are what the first step
+    registered."""
     if len(found) < 2:
         return []
     out: list[RigidTransform] = []
@@ -902,8 +909,10 @@ def _relocations(
             candidates = search.hypotheses(found, members)
             mine.append(search.best_of(candidates, members))
             angles = [found[j].transform.rotation, *(c.transform.rotation for c in candidates)]
-        else:  # no registration: the opposite of its own rotation (a half-turn twin)
+        else:  # placed at the opposite of its own rotation only (a half-turn twin)
             angles = [found[j].transform.rotation + math.pi]
+            if not exhausted(search.registrar):  # and its own cells registered alone
+                mine.append(search.elsewhere(found, members))
         if free is not None and members.size >= settings.min_cells:
             mine.append(
                 free_placement(

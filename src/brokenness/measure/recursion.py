@@ -31,7 +31,8 @@ The recursion, for a map M and a reference R::
     relocate: each partition whose free space does not show that it is in place (it
         crosses the reference's walls too often, or too little of it is seen), its cells
         and their neighbourhood registered alone, and its cells placed at every
-        translation at those hypotheses' rotations (measure.placement); the best
+        translation at those hypotheses' rotations (measure.placement); every other
+        partition's cells registered alone, and placed at the half turn; the best
         hypotheses, and the placement whose free space fits best, offered as rivals to
         the settle step (taken on agreement, or on free space that fits)
     recover from every hypothesis (a map measured below, some partition of which its
@@ -632,8 +633,11 @@ def _relocated(
     over :data:`MAP_RATIO` of the chance rate (it crosses them too often, or too little of it
     lands on the reference to show that it does not). A placement at a twin of the part's
     room puts its free space on walls about as often as chance (on the failing maps of the
-    realistic benchmark traced, 0.7-1.9 times); a partition whose free space shows that it
-    is in place is not searched again (the registrations are most of the cost of this step).
+    realistic benchmark traced, 0.7-1.9 times). A twin can nevertheless show its free space
+    in place, where the building repeats a room (a drawn atrium of degree 6: 0.46 of the
+    chance rate, 144 cells from the part's place), so every other partition's own cells are
+    registered alone too, once; their neighbourhood and their pairs are not (those
+    registrations are most of the cost of this step).
     The rivals are added to ``hypotheses`` (the placements among them are no registration's:
     :func:`_rechosen` offers them again).
 
