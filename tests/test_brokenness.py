@@ -25,6 +25,7 @@ from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.io.resample import cell_scale_offset
 from brokenness.limits import MAX_CELLS_ENV
 from brokenness.masking import cell_points
+from brokenness.measure.walls import wall_thickness
 
 DATA = Path(__file__).parent / "data"
 MAPS = ["depot.yaml", "tb3_sandbox.yaml", "building_31.yaml", "willow-2010-02-18-0.10.yaml"]
@@ -229,7 +230,10 @@ def test_map_four_times_coarser_than_the_reference(maps):
     result = compute_brokenness(coarse, ref)
     assert result.degree == 1
     assert result.parameters["threshold"] == 2.0  # as asked, for the record
-    assert result.parameters["working_threshold"] == pytest.approx(4.0)
+    # downsampled, the map draws its walls two cells thick: the band about a wall is
+    # (2 + 1) / 2 map cells of 4 working cells (session 42; 4 for walls of one cell)
+    assert wall_thickness(cell_points(coarse.occupied)) == 2
+    assert result.parameters["working_threshold"] == pytest.approx(6.0)
     assert result.parameters["working_resolution"] == pytest.approx(0.05)
     s, tx, ty = cell_scale_offset(broken, coarse)
     from_coarse = RigidTransform(0.0, tx, ty, s).inverse()
@@ -237,10 +241,13 @@ def test_map_four_times_coarser_than_the_reference(maps):
     assert {i for i, _ in matched} == {0, 1}
     for _, error in matched:
         assert error < 2.0  # reference cells (0.05 m); a map cell is 4 of them
-    # twice as coarse: the threshold as asked (c = 2 is already a map cell's side)
-    half = compute_brokenness(resample_to_resolution(broken, 0.1), ref)
+    # twice as coarse: a map cell's side is the threshold as asked, c = 2; walls of two
+    # map cells make the band about a wall (2 + 1) / 2 map cells of 2 working cells
+    half_map = resample_to_resolution(broken, 0.1)
+    half = compute_brokenness(half_map, ref)
     assert half.degree == 1
-    assert half.parameters["working_threshold"] == 2.0
+    assert wall_thickness(cell_points(half_map.occupied)) == 2
+    assert half.parameters["working_threshold"] == pytest.approx(3.0)
 
 
 def test_reference_too_large_upsampled_downsamples_the_map(maps, monkeypatch):
