@@ -41,15 +41,34 @@ def test_thin_diagonal_walls_and_speckle_count_as_one_cell():
     assert wall_thickness(np.zeros((0, 2))) == 1
 
 
-def test_most_cells_decide_and_solid_areas_stop_at_the_largest():
+def test_most_wall_cells_decide():
     # half the walls' cells in a 4-thick wall, the rest one cell thick: the majority's
     mixed = _room(1, side=200)
-    mixed[300:, :] = False
     mixed = np.vstack([mixed, np.zeros((20, mixed.shape[1]), bool)])
     mixed[-12:-8, 10:210] = True  # 800 cells, against the room's 796
     assert _thickness(mixed) == 4
-    block = np.ones((60, 60), dtype=bool)
-    assert _thickness(block) == LARGEST_THICKNESS
+    mixed[-12:-8, 10:14] = False  # 784 against 796
+    assert _thickness(mixed) == 1
+
+
+def test_solids_count_as_the_largest_thickness():
+    # the outside of a building drawn occupied (a solid), thin walls inside it
+    outside = np.ones((200, 200), dtype=bool)
+    outside[40:160, 40:160] = False
+    outside[100, 40:160] = True
+    assert _thickness(outside) == LARGEST_THICKNESS
+    assert _thickness(np.ones((60, 60), dtype=bool)) == LARGEST_THICKNESS
+    assert _thickness(_room(LARGEST_THICKNESS + 2)) == LARGEST_THICKNESS
+
+
+def test_a_large_box_is_looked_at_in_bands_spread_over_it():
+    # a room of 3-cell walls in a box of 3000 x 3000 cells: more than the 4,000,000 cells
+    # looked at in full, the same thickness from the bands
+    big = np.zeros((3000, 3000), dtype=bool)
+    big[100:2900, 100:2900] = _room(3, side=2800)[10:2810, 10:2810]
+    for row in range(300, 2700, 300):
+        big[row : row + 3, 100:2900] = True
+    assert _thickness(big) == 3
 
 
 def test_the_thickness_does_not_depend_on_the_grid_frame():
@@ -69,23 +88,25 @@ def _thickened(m: OccupancyMap, side: int) -> OccupancyMap:
 
 def test_a_coarse_map_with_thick_walls_is_measured_with_a_threshold_that_covers_them():
     # The bundled broken example (degree 2) at 0.1 m, its walls thickened to 4 map cells,
-    # against the reference at 0.05 m: upsampled, a wall is 8 working cells across, and at
-    # c = 2 most of the map's cells could not agree under the true transforms (45 % did:
-    # not measured). The threshold covers the band about the wall, (4 + 1) / 2 map cells.
+    # against the reference at 0.05 m (walls of 2 cells): upsampled, a wall is 8 working
+    # cells across, and at c = 2 most of the map's cells could not agree under the true
+    # transforms (45 % did: not measured). The threshold covers the band about the wall
+    # beyond the reference's: 2 (4 + 1) / 2 - (2 - 1) / 2 working cells.
     broken = resample_to_resolution(load_map(EXAMPLES / "broken_building_31.yaml"), 0.1)
     reference = load_map(EXAMPLES / "building_31.yaml")
     thick = _thickened(broken, 3)
     assert _thickness(thick.occupied) == 4
+    assert _thickness(reference.occupied) == 2
     result = compute_brokenness(thick, reference)
     assert result.measured
     assert result.degree == 2
     assert result.parameters["threshold"] == 2.0  # as asked, for the record
-    assert result.parameters["working_threshold"] == pytest.approx(5.0)
+    assert result.parameters["working_threshold"] == pytest.approx(4.5)
     # the same partitions as the map with its own walls, about the same cells each
     thin = compute_brokenness(broken, reference)
     assert thin.degree == 2
+    cells = cell_points(broken.occupied)
     for p, q in zip(result.partitions, thin.partitions, strict=True):
-        cells = cell_points(broken.occupied)
         assert np.median(p.transform.displacement(q.transform, cells)) < 3.0
 
 
@@ -94,9 +115,28 @@ def test_walls_three_cells_thick_at_the_references_resolution_change_nothing():
     ref = load_map(EXAMPLES / "building_31.yaml")
     states = np.array(ref.states)
     states[states == UNKNOWN] = FREE
-    two = OccupancyMap(states, ref.resolution, ref.origin)
-    two = _thickened(two, 2)
+    two = _thickened(OccupancyMap(states, ref.resolution, ref.origin), 2)
     assert _thickness(two.occupied) == 3
     result = compute_brokenness(two, ref)
     assert result.degree == 0
+    assert result.parameters["working_threshold"] == 2.0
+
+
+def test_a_reference_drawn_as_thick_as_the_map_needs_no_more():
+    # both maps' walls thickened alike: the reference's band holds the map's
+    broken = _thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
+    reference = _thickened(load_map(EXAMPLES / "building_31.yaml"), 5)
+    assert _thickness(broken.occupied) == _thickness(reference.occupied) >= 5
+    result = compute_brokenness(broken, reference)
+    assert result.degree == 2
+    assert result.parameters["working_threshold"] == 2.0
+
+
+def test_a_map_of_solids_keeps_the_threshold():
+    # the outside of the building drawn occupied: no band about its walls to tell
+    m = load_map(EXAMPLES / "building_31.yaml")
+    states = np.pad(np.array(m.states), 120, constant_values=OCCUPIED)
+    solid = OccupancyMap(states, m.resolution)
+    assert _thickness(solid.occupied) == LARGEST_THICKNESS
+    result = compute_brokenness(resample_to_resolution(solid, 0.1), m)
     assert result.parameters["working_threshold"] == 2.0

@@ -133,6 +133,7 @@ import math
 import os
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 from functools import partial
 from typing import Any
@@ -198,7 +199,7 @@ from .views import (
     prepared_reference,
     walls_connected,
 )
-from .walls import wall_thickness
+from .walls import LARGEST_THICKNESS, wall_thickness
 
 __all__ = ["compute_brokenness"]
 
@@ -444,7 +445,13 @@ def _compute(
     working, to_working, working_ref = _common_resolution(original, work)
     to_reference = working_ref.to_reference
     asked = opts
-    opts = _at_working_resolution(opts, original, working, wall_thickness(original_points))
+    opts = _at_working_resolution(
+        opts,
+        original,
+        working,
+        wall_thickness(original_points),
+        lambda: working_ref.wall_thickness,
+    )
     # the neighbourhood the threshold implies fits the reference
     check_threshold(opts.threshold, working_ref.reference.shape)
     index = working_ref.index
@@ -979,12 +986,17 @@ def _common_resolution(
 
 
 def _at_working_resolution(
-    opts: BrokennessOptions, original: OccupancyMap, working: OccupancyMap, thickness: int = 1
+    opts: BrokennessOptions,
+    original: OccupancyMap,
+    working: OccupancyMap,
+    thickness: int = 1,
+    reference_thickness: Callable[[], int] = lambda: 1,
 ) -> BrokennessOptions:
-    """``opts`` with the threshold ``c`` (and a merge threshold given below it) raised to the
-    width, in working cells, of the band in which the map draws a wall, if that is larger:
-    ``thickness`` cells of the map (:func:`~brokenness.measure.walls.wall_thickness`), each
-    of ``r`` working cells if the map was upsampled.
+    """``opts`` with the threshold ``c`` (and a merge threshold given below it) raised to
+    how far, in working cells, the map draws a wall from where it is, beyond the band in
+    which the reference draws it, if that is larger. ``thickness``: the map's walls, in its
+    own cells (:func:`~brokenness.measure.walls.wall_thickness`); ``reference_thickness()``:
+    the reference's, in working cells (asked only when the map's walls are thick).
 
     A map coarser than the reference is upsampled to the reference's cells
     (:func:`_common_resolution`): each of its cells becomes a square of ``r`` working cells a
@@ -993,15 +1005,21 @@ def _at_working_resolution(
     reference's own drawing: ``r``. A smaller ``c`` cannot tell a wall that is in place from
     one that is off, and the map falls apart into pieces of whatever agrees by chance (the
     bundled example map at 0.2 m against its 0.05 m reference: degree 6 at ``c = 2``, its
-    true 2 from ``c = 3`` on). A map that draws its walls ``t`` cells thick does the same
-    across ``t r`` working cells, so ``c`` is at least ``t r`` (session 42: the realistic
-    maps at 0.1 m against 0.05 m references, their walls thickened to three cells, came out
-    of degree 4-9 or not measured at ``c = 2``). At the default ``c = 2`` nothing changes for
-    walls of one cell up to twice the reference's cell (``r <= 2``: the realistic
-    benchmark's 0.1 m maps against 0.05 m references) and for walls of two cells at the
-    reference's resolution. A coarser or thicker reference needs no such floor: its walls,
-    drawn ``r`` cells thick, hold the true wall within them, and it is the map's cells that
-    are counted.
+    true 2 from ``c = 3`` on). At the default ``c = 2`` nothing changes up to twice the
+    reference's cell (``r <= 2``: the realistic benchmark's 0.1 m maps against 0.05 m
+    references). A coarser reference needs no such floor: its walls, drawn ``r`` cells
+    thick, hold the true wall within them, and it is the map's cells that are counted.
+
+    A map that draws its walls ``t`` cells thick draws them about where they are (a hit
+    blurred by the sensor model to both sides, a dilation): ``(t - 1) / 2`` of its cells to
+    either side of the cell that holds the wall, ``r (t - 1) / 2`` working cells. A reference
+    that draws its walls ``t_r`` working cells thick holds ``(t_r - 1) / 2`` of them; so
+    ``c`` is at least ``r + r (t - 1) / 2 - (t_r - 1) / 2`` (session 42: the realistic maps
+    at 0.1 m against 0.05 m references, their walls thickened to three cells, came out of
+    degree 4-9 or not measured at ``c = 2``). For walls of one cell this is the floor above;
+    for a map whose walls are :data:`~brokenness.measure.walls.LARGEST_THICKNESS` cells or
+    more (solids: objects drawn filled, the outside of a building drawn occupied) there is
+    no band to tell, and the floor above stays.
     """
     side = 1.0
     if not (
@@ -1011,7 +1029,11 @@ def _at_working_resolution(
         or working.resolution >= original.resolution
     ):
         side = round(original.resolution / working.resolution, 9)
-    band = side * (thickness + 1) / 2
+    band = side
+    # walls of the largest thickness told apart: solids, or no band to tell (the floor above)
+    thick = thickness < LARGEST_THICKNESS
+    if thick and side * (thickness + 1) / 2 > max(opts.threshold, side):  # else c stays
+        band = max(side, side * (thickness + 1) / 2 - (reference_thickness() - 1) / 2)
     if band <= opts.threshold:
         return opts
     merge = None if opts.merge_threshold is None else max(opts.merge_threshold, band)

@@ -31,6 +31,7 @@ from functools import cached_property
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex
 from ..transform import RigidTransform
+from .walls import wall_thickness
 
 __all__ = ["ReferenceWork", "WorkingReference"]
 
@@ -57,6 +58,12 @@ class WorkingReference:
     def index(self) -> ReferenceIndex:
         """:attr:`reference`, indexed (made when first asked for)."""
         return ReferenceIndex.build(self.reference)
+
+    @cached_property
+    def wall_thickness(self) -> int:
+        """The thickness, in working cells, at which :attr:`reference` draws its walls
+        (:func:`~brokenness.measure.walls.wall_thickness`; made when first asked for)."""
+        return wall_thickness(self.index.occupied_points)
 
     def symmetries(
         self, key: tuple[int, float], make: Callable[[], list[RigidTransform]]
