@@ -230,10 +230,11 @@ def test_map_four_times_coarser_than_the_reference(maps):
     result = compute_brokenness(coarse, ref)
     assert result.degree == 1
     assert result.parameters["threshold"] == 2.0  # as asked, for the record
-    # downsampled, the map draws its walls two cells thick: the band about a wall is
-    # (2 + 1) / 2 map cells of 4 working cells (session 42; 4 for walls of one cell)
+    # downsampled, the map draws its walls two cells thick, the reference two working
+    # cells: 4 + 4 (2 - 1) / 2 - (2 - 1) / 2 (session 42; 4 for walls of one cell)
     assert wall_thickness(cell_points(coarse.occupied)) == 2
-    assert result.parameters["working_threshold"] == pytest.approx(6.0)
+    assert wall_thickness(cell_points(ref.occupied)) == 2
+    assert result.parameters["working_threshold"] == pytest.approx(5.5)
     assert result.parameters["working_resolution"] == pytest.approx(0.05)
     s, tx, ty = cell_scale_offset(broken, coarse)
     from_coarse = RigidTransform(0.0, tx, ty, s).inverse()
@@ -242,12 +243,12 @@ def test_map_four_times_coarser_than_the_reference(maps):
     for _, error in matched:
         assert error < 2.0  # reference cells (0.05 m); a map cell is 4 of them
     # twice as coarse: a map cell's side is the threshold as asked, c = 2; walls of two
-    # map cells make the band about a wall (2 + 1) / 2 map cells of 2 working cells
+    # map cells reach 2 + 2 (2 - 1) / 2 - (2 - 1) / 2 working cells
     half_map = resample_to_resolution(broken, 0.1)
     half = compute_brokenness(half_map, ref)
     assert half.degree == 1
     assert wall_thickness(cell_points(half_map.occupied)) == 2
-    assert half.parameters["working_threshold"] == pytest.approx(3.0)
+    assert half.parameters["working_threshold"] == pytest.approx(2.5)
 
 
 def test_reference_too_large_upsampled_downsamples_the_map(maps, monkeypatch):
