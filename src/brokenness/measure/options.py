@@ -35,10 +35,10 @@ class BrokennessOptions:
         ``c`` of Psi_2, in reference cells: a moved map cell agrees with the reference when
         the Manhattan distance to the nearest occupied reference cell is at most ``c``.
         Default 2 (10 cm at 5 cm per cell), enough for wall thickness and jitter. (With
-        maps of two resolutions, in cells of the finer one. A map works with at least the
-        band about a wall in which it draws it: ``(t + 1) / 2`` of its cells for walls
-        ``t`` cells thick, in working cells (the side of one of its cells for walls of one
-        cell when it is coarser than the reference); the result's
+        maps of two resolutions, in cells of the finer one. A map works with at least how
+        far it draws a wall from where it is, beyond the reference's drawing of it: the
+        side of one of its cells when it is coarser than the reference, more for walls
+        drawn thicker than the reference's; the result's
         ``parameters["working_threshold"]``.)
     min_partition_fraction : float
         Smallest partition, as a share of the map's occupied cells (default 2 %).

@@ -1030,9 +1030,9 @@ def _at_working_resolution(
     ):
         side = round(original.resolution / working.resolution, 9)
     band = side
-    # walls of the largest thickness told apart: solids, or no band to tell (the floor above)
-    thick = thickness < LARGEST_THICKNESS
-    if thick and side * (thickness + 1) / 2 > max(opts.threshold, side):  # else c stays
+    # walls of the largest thickness told apart: solids, no band to tell (the floor above)
+    banded = thickness < LARGEST_THICKNESS
+    if banded and side * (thickness + 1) / 2 > max(opts.threshold, side):  # else c stays
         band = max(side, side * (thickness + 1) / 2 - (reference_thickness() - 1) / 2)
     if band <= opts.threshold:
         return opts

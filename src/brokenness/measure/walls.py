@@ -3,9 +3,10 @@
 A mapper marks a wall across as many cells as its sensor model, its resolution and its
 post-processing make it: the project's simulated maps and most SLAM maps at 5 cm draw a
 wall one or two cells thick, other mappers (or a map cleaned by a dilation) three or four.
-The agreement threshold ``c`` must cover that band, as it covers the band of a coarse map's
-upsampled cells (:func:`brokenness.measure.recursion._at_working_resolution`): the wall
-the reference draws lies anywhere within it.
+A wall is drawn about where it is, so the agreement threshold ``c`` must cover how far
+the map's band reaches beyond the band in which the reference draws the same wall, as it
+covers a coarse map's upsampled cells
+(:func:`brokenness.measure.recursion._at_working_resolution`).
 """
 
 from __future__ import annotations
