@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from brokenness import OccupancyMap, compute_brokenness, load_map, resample_to_resolution
+from brokenness.errors import NothingFoundWarning
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import cell_points
 from brokenness.measure.walls import LARGEST_THICKNESS, wall_thickness
@@ -138,5 +139,21 @@ def test_a_map_of_solids_keeps_the_threshold():
     states = np.pad(np.array(m.states), 120, constant_values=OCCUPIED)
     solid = OccupancyMap(states, m.resolution)
     assert _thickness(solid.occupied) == LARGEST_THICKNESS
-    result = compute_brokenness(resample_to_resolution(solid, 0.1), m)
+    with pytest.warns(NothingFoundWarning):  # the solid is most of its occupied cells
+        result = compute_brokenness(resample_to_resolution(solid, 0.1), m)
     assert result.parameters["working_threshold"] == 2.0
+
+
+def test_an_upsampled_reference_holds_the_wall_anywhere_in_its_middle_cell():
+    # a map at 0.05 m, walls 7 cells thick, against the reference at 0.1 m (walls 2 of its
+    # cells): upsampled, each reference cell is 2 working cells and the wall anywhere in
+    # the middle one, so the reference surely reaches 2 (2 - 1) / 2 working cells beyond
+    # it: c = 1 + (7 - 1) / 2 - 1 (not the 1.5 of a band of 4 working cells drawn about it)
+    broken = _thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
+    reference = resample_to_resolution(load_map(EXAMPLES / "building_31.yaml"), 0.1)
+    assert _thickness(broken.occupied) == 7
+    assert _thickness(reference.occupied) == 2
+    result = compute_brokenness(broken, reference)
+    assert result.degree == 2
+    assert result.parameters["working_resolution"] == pytest.approx(0.05)
+    assert result.parameters["working_threshold"] == pytest.approx(3.0)

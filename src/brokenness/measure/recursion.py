@@ -450,7 +450,7 @@ def _compute(
         original,
         working,
         wall_thickness(original_points),
-        lambda: working_ref.wall_thickness,
+        lambda: working_ref.upsampling * (work.wall_thickness - 1) / 2,
     )
     # the neighbourhood the threshold implies fits the reference
     check_threshold(opts.threshold, working_ref.reference.shape)
@@ -990,13 +990,14 @@ def _at_working_resolution(
     original: OccupancyMap,
     working: OccupancyMap,
     thickness: int = 1,
-    reference_thickness: Callable[[], int] = lambda: 1,
+    reference_reach: Callable[[], float] = lambda: 0.0,
 ) -> BrokennessOptions:
     """``opts`` with the threshold ``c`` (and a merge threshold given below it) raised to
     how far, in working cells, the map draws a wall from where it is, beyond the band in
     which the reference draws it, if that is larger. ``thickness``: the map's walls, in its
-    own cells (:func:`~brokenness.measure.walls.wall_thickness`); ``reference_thickness()``:
-    the reference's, in working cells (asked only when the map's walls are thick).
+    own cells (:func:`~brokenness.measure.walls.wall_thickness`); ``reference_reach()``: how
+    far, in working cells, the reference's drawing of a wall surely reaches beyond the cell
+    that holds it (asked only when the map's walls are thick).
 
     A map coarser than the reference is upsampled to the reference's cells
     (:func:`_common_resolution`): each of its cells becomes a square of ``r`` working cells a
@@ -1013,8 +1014,10 @@ def _at_working_resolution(
     A map that draws its walls ``t`` cells thick draws them about where they are (a hit
     blurred by the sensor model to both sides, a dilation): ``(t - 1) / 2`` of its cells to
     either side of the cell that holds the wall, ``r (t - 1) / 2`` working cells. A reference
-    that draws its walls ``t_r`` working cells thick holds ``(t_r - 1) / 2`` of them; so
-    ``c`` is at least ``r + r (t - 1) / 2 - (t_r - 1) / 2`` (session 42: the realistic maps
+    that draws its walls ``t_r`` of its own cells thick, each ``s`` working cells (``s > 1``
+    when it was upsampled), holds ``s (t_r - 1) / 2`` of them to either side of its cell
+    that holds the wall (the wall anywhere in that one); so ``c`` is at least
+    ``r + r (t - 1) / 2 - s (t_r - 1) / 2`` (session 42: the realistic maps
     at 0.1 m against 0.05 m references, their walls thickened to three cells, came out of
     degree 4-9 or not measured at ``c = 2``). For walls of one cell this is the floor above;
     for a map whose walls are :data:`~brokenness.measure.walls.LARGEST_THICKNESS` cells or
@@ -1033,7 +1036,7 @@ def _at_working_resolution(
     # walls of the largest thickness told apart: solids, no band to tell (the floor above)
     banded = thickness < LARGEST_THICKNESS
     if banded and side * (thickness + 1) / 2 > max(opts.threshold, side):  # else c stays
-        band = max(side, side * (thickness + 1) / 2 - (reference_thickness() - 1) / 2)
+        band = max(side, side * (thickness + 1) / 2 - reference_reach())
     if band <= opts.threshold:
         return opts
     merge = None if opts.merge_threshold is None else max(opts.merge_threshold, band)

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 from ..grid import OccupancyMap
-from ..masking import ReferenceIndex
+from ..masking import ReferenceIndex, cell_points
 from ..transform import RigidTransform
 from .walls import wall_thickness
 
@@ -59,11 +59,10 @@ class WorkingReference:
         """:attr:`reference`, indexed (made when first asked for)."""
         return ReferenceIndex.build(self.reference)
 
-    @cached_property
-    def wall_thickness(self) -> int:
-        """The thickness, in working cells, at which :attr:`reference` draws its walls
-        (:func:`~brokenness.measure.walls.wall_thickness`; made when first asked for)."""
-        return wall_thickness(self.index.occupied_points)
+    @property
+    def upsampling(self) -> float:
+        """Working cells per cell of the reference as given (1 unless it was upsampled)."""
+        return 1.0 / self.to_reference.scale
 
     def symmetries(
         self, key: tuple[int, float], make: Callable[[], list[RigidTransform]]
@@ -88,6 +87,12 @@ class ReferenceWork:
 
     reference: OccupancyMap
     _at: dict[float | None, WorkingReference] = field(default_factory=dict, repr=False)
+
+    @cached_property
+    def wall_thickness(self) -> int:
+        """The thickness, in its own cells, at which :attr:`reference` draws its walls
+        (:func:`~brokenness.measure.walls.wall_thickness`; made when first asked for)."""
+        return wall_thickness(cell_points(self.reference.occupied))
 
     def at(self, resolution: float | None) -> WorkingReference:
         """The reference at ``resolution`` (metres per cell; ``None``: as given).
