@@ -8,7 +8,14 @@ import cv2
 import numpy as np
 import pytest
 
-from brokenness import OccupancyMap, compute_brokenness, load_map, resample_to_resolution
+from brokenness import (
+    OccupancyMap,
+    compute_brokenness,
+    load_map,
+    resample_to_resolution,
+    save_map,
+)
+from brokenness.cli.main import main
 from brokenness.errors import NothingFoundWarning
 from brokenness.grid import FREE, OCCUPIED, UNKNOWN
 from brokenness.masking import cell_points
@@ -85,6 +92,21 @@ def _thickened(m: OccupancyMap, side: int) -> OccupancyMap:
     occupied = (states == OCCUPIED).astype(np.uint8)
     states[cv2.dilate(occupied, np.ones((side, side), np.uint8)) > 0] = OCCUPIED
     return OccupancyMap(states, m.resolution, m.origin)
+
+
+def test_the_command_line_says_why_the_threshold_was_raised(tmp_path, capsys):
+    broken = resample_to_resolution(load_map(EXAMPLES / "broken_building_31.yaml"), 0.1)
+    save_map(_thickened(broken, 3), tmp_path / "thick.yaml")
+    reference = str(EXAMPLES / "building_31.yaml")
+    assert main(["compute", str(tmp_path / "thick.yaml"), reference]) == 0
+    out = capsys.readouterr().out
+    assert "degree of brokenness: 2" in out
+    assert (
+        "threshold: 4.5 working cells, not 2: how far the map draws a wall beyond the "
+        "reference's drawing of it; the map draws its walls 4 of its cells thick"
+    ) in out
+    assert main(["compute", str(EXAMPLES / "broken_building_31.yaml"), reference]) == 0
+    assert "threshold:" not in capsys.readouterr().out  # not raised: no line
 
 
 def test_a_coarse_map_with_thick_walls_is_measured_with_a_threshold_that_covers_them():

@@ -353,6 +353,21 @@ def _frames_line(result: BrokennessResult, out: Any) -> None:
     )
 
 
+def _threshold_line(result: BrokennessResult) -> str | None:
+    """When the agreement threshold was raised for the map (a coarser map's cells, walls
+    drawn thicker than the reference's): by how much and why (one line; ``None`` when not)."""
+    asked = result.parameters.get("threshold")
+    used = result.parameters.get("working_threshold")
+    if asked is None or used is None or used <= asked:
+        return None
+    walls = result.parameters.get("wall_thickness")
+    drawn = "" if walls is None else f"; the map draws its walls {walls} of its cells thick"
+    return (
+        f"threshold: {used:g} working cells, not {asked:g}: how far the map draws a wall "
+        f"beyond the reference's drawing of it{drawn}"
+    )
+
+
 def _replication_line(result: BrokennessResult) -> str | None:
     """For a measured map with a partition in doubt: the frame it was measured in again, and
     its degree there (one line; ``None`` when it was not needed)."""
@@ -448,7 +463,7 @@ def _print_summary(
         f"({100 * result.unassigned_fraction:.1f}%)"
     )
     out.print(_evidence_line(result))
-    for line in (_doubt_line(result), _replication_line(result)):
+    for line in (_threshold_line(result), _doubt_line(result), _replication_line(result)):
         if line is not None:
             out.print(line)
     _frames_line(result, out)

@@ -285,8 +285,10 @@ def compute_brokenness(
         the coarser of the two is resampled to the finer one's first (the map keeps the
         detail that tells its partitions apart; ``threshold`` and every other length in
         cells are cells of that grid, ``parameters["working_resolution"]`` of the result;
-        a coarser map's ``threshold`` is at least the side of one of its cells there,
-        ``parameters["working_threshold"]``),
+        a coarser map's ``threshold`` is at least the side of one of its cells there, and
+        a map whose walls are drawn thicker than the reference's, how far they reach
+        beyond it, ``parameters["working_threshold"]``; the map's wall thickness, in its
+        cells, ``parameters["wall_thickness"]``),
         unless the reference upsampled would exceed the cell limit: then the map is
         downsampled to the reference's resolution. Transforms and displacements are always
         reported from the map's cells to the reference's.
@@ -445,11 +447,12 @@ def _compute(
     working, to_working, working_ref = _common_resolution(original, work)
     to_reference = working_ref.to_reference
     asked = opts
+    thickness = wall_thickness(original_points)
     opts = _at_working_resolution(
         opts,
         original,
         working,
-        wall_thickness(original_points),
+        thickness,
         lambda: working_ref.upsampling * (work.wall_thickness - 1) / 2,
     )
     # the neighbourhood the threshold implies fits the reference
@@ -557,6 +560,7 @@ def _compute(
     parameters = asked.to_dict() | {
         "working_resolution": working.resolution,
         "working_threshold": opts.threshold,
+        "wall_thickness": thickness,
     }
     if reason is not None:
         warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
