@@ -74,8 +74,9 @@ def wall_thickness(points: NDArray[np.float64], largest: int = LARGEST_THICKNESS
     n = points.shape[0]
     if n == 0:
         return 1
-    cols = points[:, 0].astype(np.int64)
-    rows = points[:, 1].astype(np.int64)
+    # whole cells (a side of a map within the cell limit fits int32), from 0
+    cols = points[:, 0].astype(np.int32)
+    rows = points[:, 1].astype(np.int32)
     cols -= cols.min()
     rows -= rows.min()
     box = (int(rows.max()) + 1) * (int(cols.max()) + 1)
@@ -90,10 +91,10 @@ def wall_thickness(points: NDArray[np.float64], largest: int = LARGEST_THICKNESS
     return thickness
 
 
-def _in_squares_of_two(rows: NDArray[np.int64], cols: NDArray[np.int64]) -> int:
+def _in_squares_of_two(rows: NDArray[np.int32], cols: NDArray[np.int32]) -> int:
     """How many of the cells lie in a full 2 x 2 square of them (on the cells alone)."""
     width = int(cols.max()) + 2  # a margin: no square wraps into the next row
-    keys = np.sort(rows * width + cols)
+    keys = np.sort(rows.astype(np.int64) * width + cols)
     corners = keys
     for step in (1, width, width + 1):
         corners = corners[_present(keys, corners + step)]
@@ -105,7 +106,7 @@ def _in_squares_of_two(rows: NDArray[np.int64], cols: NDArray[np.int64]) -> int:
     return int(np.count_nonzero(held))
 
 
-def _held(rows: NDArray[np.int64], cols: NDArray[np.int64], largest: int) -> list[int]:
+def _held(rows: NDArray[np.int32], cols: NDArray[np.int32], largest: int) -> list[int]:
     """For each ``k`` from 1 to ``largest``, how many cells lie in a full ``k x k`` square:
     the cells an opening by that square keeps (an erosion that marks each full square by
     its top-left cell, then a dilation back over the square), counted band by band; in a
@@ -113,8 +114,9 @@ def _held(rows: NDArray[np.int64], cols: NDArray[np.int64], largest: int) -> lis
     :data:`_MIN_BANDS`), spread evenly (``[0]``: the cells of those bands)."""
     halo = largest - 1  # the rows an opening of a band's rows reads beyond them
     width = int(cols.max()) + 1 + 2 * halo
-    order = np.argsort(rows, kind="stable")
-    rows, cols = rows[order], cols[order]
+    if rows.size > 1 and bool(np.any(rows[1:] < rows[:-1])):  # not row by row already
+        order = np.argsort(rows, kind="stable")
+        rows, cols = rows[order], cols[order]
     counts = [0] * largest
     height = int(rows[-1]) + 1
     tops = np.arange(0, height, _BAND_ROWS)
