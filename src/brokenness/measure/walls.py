@@ -142,7 +142,10 @@ def _held(rows: NDArray[np.int32], cols: NDArray[np.int32], largest: int) -> lis
                 borderType=cv2.BORDER_CONSTANT,
                 borderValue=0,
             )
-            counts[k - 1] += int(np.count_nonzero(held[halo : halo + bottom - top]))
+            kept = int(np.count_nonzero(held[halo : halo + bottom - top]))
+            if kept == 0:
+                break  # a full larger square holds only cells that a smaller one holds
+            counts[k - 1] += kept
     return counts
 
 
