@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
@@ -22,6 +22,11 @@ from brokenness.masking import cell_points
 from brokenness.measure.walls import LARGEST_THICKNESS, wall_thickness
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+_BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+if str(_BENCH) not in sys.path:
+    sys.path.insert(0, str(_BENCH))
+
+from thick_walls import thickened  # noqa: E402  (the benchmark's own dilation)
 
 
 def _thickness(mask: np.ndarray) -> int:
@@ -86,17 +91,9 @@ def test_the_thickness_does_not_depend_on_the_grid_frame():
     assert _thickness(walls) == _thickness(turned) == _thickness(shifted) == 3
 
 
-def _thickened(m: OccupancyMap, side: int) -> OccupancyMap:
-    """``m`` with its walls dilated by a ``side`` x ``side`` square (free cells included)."""
-    states = np.array(m.states)
-    occupied = (states == OCCUPIED).astype(np.uint8)
-    states[cv2.dilate(occupied, np.ones((side, side), np.uint8)) > 0] = OCCUPIED
-    return OccupancyMap(states, m.resolution, m.origin)
-
-
 def test_the_command_line_says_why_the_threshold_was_raised(tmp_path, capsys):
     broken = resample_to_resolution(load_map(EXAMPLES / "broken_building_31.yaml"), 0.1)
-    save_map(_thickened(broken, 3), tmp_path / "thick.yaml")
+    save_map(thickened(broken, 3), tmp_path / "thick.yaml")
     reference = str(EXAMPLES / "building_31.yaml")
     assert main(["compute", str(tmp_path / "thick.yaml"), reference]) == 0
     out = capsys.readouterr().out
@@ -117,7 +114,7 @@ def test_a_coarse_map_with_thick_walls_is_measured_with_a_threshold_that_covers_
     # beyond the reference's: 2 (4 + 1) / 2 - (2 - 1) / 2 working cells.
     broken = resample_to_resolution(load_map(EXAMPLES / "broken_building_31.yaml"), 0.1)
     reference = load_map(EXAMPLES / "building_31.yaml")
-    thick = _thickened(broken, 3)
+    thick = thickened(broken, 3)
     assert _thickness(thick.occupied) == 4
     assert _thickness(reference.occupied) == 2
     result = compute_brokenness(thick, reference)
@@ -138,7 +135,7 @@ def test_walls_three_cells_thick_at_the_references_resolution_change_nothing():
     ref = load_map(EXAMPLES / "building_31.yaml")
     states = np.array(ref.states)
     states[states == UNKNOWN] = FREE
-    two = _thickened(OccupancyMap(states, ref.resolution, ref.origin), 2)
+    two = thickened(OccupancyMap(states, ref.resolution, ref.origin), 2)
     assert _thickness(two.occupied) == 3
     result = compute_brokenness(two, ref)
     assert result.degree == 0
@@ -147,8 +144,8 @@ def test_walls_three_cells_thick_at_the_references_resolution_change_nothing():
 
 def test_a_reference_drawn_as_thick_as_the_map_needs_no_more():
     # both maps' walls thickened alike: the reference's band holds the map's
-    broken = _thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
-    reference = _thickened(load_map(EXAMPLES / "building_31.yaml"), 5)
+    broken = thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
+    reference = thickened(load_map(EXAMPLES / "building_31.yaml"), 5)
     assert _thickness(broken.occupied) == _thickness(reference.occupied) >= 5
     result = compute_brokenness(broken, reference)
     assert result.degree == 2
@@ -171,7 +168,7 @@ def test_an_upsampled_reference_holds_the_wall_anywhere_in_its_middle_cell():
     # cells): upsampled, each reference cell is 2 working cells and the wall anywhere in
     # the middle one, so the reference surely reaches 2 (2 - 1) / 2 working cells beyond
     # it: c = 1 + (7 - 1) / 2 - 1 (not the 1.5 of a band of 4 working cells drawn about it)
-    broken = _thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
+    broken = thickened(load_map(EXAMPLES / "broken_building_31.yaml"), 5)
     reference = resample_to_resolution(load_map(EXAMPLES / "building_31.yaml"), 0.1)
     assert _thickness(broken.occupied) == 7
     assert _thickness(reference.occupied) == 2
