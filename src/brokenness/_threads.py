@@ -14,7 +14,18 @@ therefore run on one thread each:
   libraries size their thread pools once, when numpy loads them. The parent's own
   environment is restored afterwards; a variable the user set is left as it is.
 
-The process that evaluates pairs itself (``workers=1``) keeps the libraries' defaults.
+The command line's own process (``brokenness ...``, :func:`single_threaded_process` before
+it loads numpy or OpenCV) runs on one thread too: ``brokenness compute``, a batch with
+``--workers 1`` and a timeline computed in-process. The measure's operations are many and
+small (point lookups, FFTs of pooled 256-384 cell images, grids of a map's box), and the
+libraries' thread pools give them no speed: on two cores, OpenCV's and OpenBLAS's pools took
+1.2-1.6x the CPU of one thread for about the same wall time on maps of 600² to 4000² cells
+(one thread: 0.86-1.05x the wall time), and at 10000² the same CPU for about 8 % less wall
+time (README, "Speed and memory"). A
+variable the user set is left as it is (``OPENCV_FOR_THREADS_NUM=2 brokenness compute ...``
+gives OpenCV two threads). :func:`~brokenness.cli.main.main` called from Python leaves its
+host's threads as they are.
+
 Either way the results are the same, bit for bit: no call on the measure's path gives other
 bits on another number of threads (``tests/test_thread_determinism.py``).
 """
@@ -27,7 +38,14 @@ import os
 from collections.abc import Iterator, Sequence
 from typing import Any
 
-__all__ = ["THREAD_ENV_VARS", "forkserver_context", "one_thread", "single_threaded_children"]
+__all__ = [
+    "OPENCV_THREADS_VAR",
+    "THREAD_ENV_VARS",
+    "forkserver_context",
+    "one_thread",
+    "single_threaded_children",
+    "single_threaded_process",
+]
 
 #: Environment variables that size the thread pools of numpy's BLAS, OpenMP and numexpr.
 THREAD_ENV_VARS: tuple[str, ...] = (
@@ -37,6 +55,22 @@ THREAD_ENV_VARS: tuple[str, ...] = (
     "VECLIB_MAXIMUM_THREADS",
     "NUMEXPR_NUM_THREADS",
 )
+
+
+#: OpenCV's variable for the size of its thread pool, read when ``cv2`` loads.
+OPENCV_THREADS_VAR = "OPENCV_FOR_THREADS_NUM"
+
+
+def single_threaded_process() -> None:
+    """This process: numpy's BLAS, OpenMP and OpenCV on one thread, when they load.
+
+    Sets each of :data:`THREAD_ENV_VARS` and :data:`OPENCV_THREADS_VAR` that is not already
+    set to ``"1"``, for good (the command line calls it first thing; the variables reach
+    the processes it starts too). A library already loaded keeps its pool: call it before
+    numpy and ``cv2`` are imported.
+    """
+    for name in (*THREAD_ENV_VARS, OPENCV_THREADS_VAR):
+        os.environ.setdefault(name, "1")
 
 
 def one_thread() -> None:

@@ -21,9 +21,10 @@ from typing import Any, NoReturn, TextIO
 
 from .. import __version__
 from .._memory import small_pages
+from .._threads import single_threaded_process
 from ..errors import BrokennessError
 
-__all__ = ["main"]
+__all__ = ["console", "main"]
 
 #: Subcommand modules, in the order ``--help`` lists them.
 SUBCOMMANDS: tuple[str, ...] = (
@@ -124,6 +125,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings(), pages:
         warnings.showwarning = _show_warning
         return _run(args)
+
+
+def console() -> int:
+    """The ``brokenness`` command (and ``python -m brokenness``): :func:`main` in a process of
+    its own, whose libraries run on one thread each unless the user set their variables
+    (:func:`brokenness._threads.single_threaded_process`; numpy and OpenCV are not loaded
+    yet here)."""
+    single_threaded_process()
+    return main()
 
 
 def _run(args: argparse.Namespace) -> int:

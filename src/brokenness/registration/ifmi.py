@@ -178,7 +178,7 @@ def _draw_turned(
     interpolated on its own, so the canvas has the same bits whatever the number of OpenCV
     threads. ``cv2.warpAffine`` does not guarantee that: its bilinear warp of a float image
     gave other bits on one thread than on two or more (canvases of about 200 cells and up),
-    so a batch worker (one thread) and ``brokenness compute`` (a thread per core) gave
+    so a batch worker (one thread) and ``brokenness compute`` (then a thread per core) gave
     transforms that differed in their last digits, and could decide differently.
     """
     c, s = math.cos(theta), math.sin(theta)
