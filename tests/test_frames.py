@@ -242,6 +242,17 @@ def test_compare_does_not_split_results_by_the_frame_each_kept(tmp_path):
     assert run_settings(entries) == {}  # the same options: one group
     other = entry("c.zip", 4, frames=1)
     assert "parameters" in run_settings([*entries, other])  # other options: apart
+    # a map measured again turned (step 11) was run with the same options as the others
+    replicated = entry(
+        "d.zip",
+        3,
+        frame="own",
+        frame_degrees=[3, 3, 3],
+        replication_frame="turned 180",
+        replication_degree=3,
+        replication_placed_alike=0.93,
+    )
+    assert run_settings([*entries, replicated]) == {}
 
 
 def _with_bounds(result, bounds):

@@ -75,7 +75,18 @@ _SUFFIXES = {".csv": "csv", ".md": "markdown", ".markdown": "markdown"}
 RUN_COLUMNS: tuple[str, ...] = ("method", "parameters")
 #: Parameters that differ from run to run by design, never a reason to keep results apart.
 _RUN_SPECIFIC = frozenset(
-    {"seed", "working_resolution", "working_threshold", "wall_thickness", "frame", "frame_degrees"}
+    {
+        "seed",
+        "working_resolution",
+        "working_threshold",
+        "wall_thickness",
+        "frame",
+        "frame_degrees",
+        # what step 11 found, for the maps it measured again (not an option of the run)
+        "replication_frame",
+        "replication_degree",
+        "replication_placed_alike",
+    }
 )
 
 
