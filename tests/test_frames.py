@@ -24,8 +24,10 @@ from brokenness.measure.frames import (
     in_doubt,
     in_frame,
     partitions_in_doubt,
+    placed_alike,
     to_replicate,
 )
+from brokenness.transform import RigidTransform
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "broken_building_31.yaml"
@@ -211,9 +213,9 @@ def test_other_frames_offer_partitionings_of_a_measured_map_never_a_degree(examp
         [
             # own: measured, its last partition in doubt
             replace(real, unassigned_cells=50, partitions=(*real.partitions[:-1], doubtful)),
-            # turned 180: measured (so the own frame's verdict is replicated, step 11), with
-            # fewer cells left, but at another degree
-            replace(real, unassigned_cells=10, degree=3),
+            # turned 180: measured on the same partitions (so the own frame's verdict is
+            # replicated, step 11), with fewer cells left, but at another degree
+            replace(_turned(real, m), unassigned_cells=10, degree=3),
             replace(real, unassigned_cells=20),  # turned 90: measured, fewer than own
         ]
     )
@@ -286,15 +288,34 @@ def example_result(example) -> brokenness.BrokennessResult:
     return compute_brokenness(*example)
 
 
-def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 1):
+def _turned(result: brokenness.BrokennessResult, m: OccupancyMap, shift: float = 0.0):
+    """``result`` of the map ``m`` as the map with its grid turned 180 degrees would report it
+    (its labels turned, each transform taking the turned grid's cells), each transform
+    then moved by ``shift`` reference cells along x."""
+    _, cells = in_frame(m, "turned 180")
+    back = cells.inverse()
+    parts = tuple(
+        replace(
+            p,
+            transform=RigidTransform(0.0, shift, 0.0).compose(p.transform.compose(back)),
+        )
+        for p in result.partitions
+    )
+    labels = np.ascontiguousarray(np.rot90(result.labels, 2))
+    return replace(result, partitions=parts, labels=labels)
+
+
+def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 1, shift=0.0):
     """``compute_brokenness`` whose own frame is the example (its result ``real``) measured
     with partitions in doubt, and whose map with its grid turned 180 degrees is (or is
-    not) measured."""
+    not) measured: on the same partitions, or on partitions moved by ``shift`` cells."""
     from brokenness.measure import recursion
 
     m, ref = example
     own = _with_bounds(real, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
-    again = own if again_measured else replace(own, measured=False, degree=None, reason="no")
+    again = _turned(own, m, shift)
+    if not again_measured:
+        again = replace(again, measured=False, degree=None, reason="no")
     calls = []
 
     def computed(map_, reference, opts):
@@ -318,6 +339,24 @@ def test_a_map_measured_with_partitions_in_doubt_is_measured_again_turned(
     assert result.measured and result.degree == 2 and not said
     assert result.parameters["replication_frame"] == "turned 180"
     assert result.parameters["replication_degree"] == 2
+    assert result.parameters["replication_placed_alike"] == 1.0
+
+
+def test_a_map_measured_again_turned_on_other_partitions_is_not_measured(
+    example, example_result, monkeypatch
+):
+    """Measured in both frames, but the turned frame puts every cell 3 cells from where the
+    own frame does (past c = 2): other partitions, not the same ones found again."""
+    result, calls, said = _replicated(example, example_result, monkeypatch, True, shift=3.0)
+    assert len(calls) == 2
+    assert result.measured is False and result.degree is None
+    assert result.parameters["replication_degree"] == 2
+    assert result.parameters["replication_placed_alike"] == 0.0
+    assert "on other partitions: 0% of its partitioned cells placed alike" in result.reason
+    assert len(said) == 1
+    # 1.9 cells apart: within c, the same placement
+    result, _, said = _replicated(example, example_result, monkeypatch, True, shift=1.9)
+    assert result.measured and result.parameters["replication_placed_alike"] == 1.0 and not said
 
 
 def test_a_map_not_measured_again_turned_is_not_measured(example, example_result, monkeypatch):
@@ -333,6 +372,41 @@ def test_a_map_not_measured_again_turned_is_not_measured(example, example_result
     assert len(calls) == 3 and result.measured is False and len(said) == 1
     assert result.parameters["frame"] == "own"
     assert result.parameters["frame_degrees"] == [2, None, None]
+
+
+def test_placed_alike_counts_the_cells_both_results_place_within_the_tolerance(
+    example, example_result
+):
+    m, _ = example
+    own = example_result
+    assigned = int(np.count_nonzero(own.labels >= 0))
+    same = _turned(_turned(own, m), m)  # turned twice: the own frame again
+    assert placed_alike(own, own, 0.0) == 1.0
+    assert placed_alike(own, same, 1e-6) == 1.0
+    moved = replace(
+        own,
+        partitions=tuple(
+            replace(p, transform=RigidTransform(0.0, 0.0, 2.5).compose(p.transform))
+            for p in own.partitions
+        ),
+    )
+    assert placed_alike(own, moved, 2.4) == 0.0 and placed_alike(own, moved, 2.6) == 1.0
+    # one partition placed elsewhere: its share of the partitioned cells is lost
+    first = own.partitions[0]
+    one_off = replace(
+        own,
+        partitions=(
+            replace(first, transform=RigidTransform(0.0, 40.0, 0.0).compose(first.transform)),
+            *own.partitions[1:],
+        ),
+    )
+    share = 1.0 - np.count_nonzero(own.labels == 0) / assigned
+    assert placed_alike(own, one_off, 2.0) == pytest.approx(share)
+    # cells the other result leaves unassigned are not placed alike
+    unassigned = replace(own, labels=np.where(own.labels == 0, -2, own.labels).astype(np.int16))
+    assert placed_alike(own, unassigned, 2.0) == pytest.approx(share)
+    nothing = replace(own, labels=np.where(own.labels >= 0, -2, own.labels).astype(np.int16))
+    assert placed_alike(nothing, own, 2.0) == 0.0
 
 
 def test_a_map_with_its_partitions_shown_in_place_is_computed_once(
@@ -356,12 +430,17 @@ def test_cli_says_when_and_where_a_map_was_measured_again(
     replicated = replace(
         replicated,
         parameters=replicated.parameters
-        | {"replication_frame": "turned 180", "replication_degree": 2},
+        | {
+            "replication_frame": "turned 180",
+            "replication_degree": 2,
+            "replication_placed_alike": 0.9712,
+        },
     )
     monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: replicated)
     assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
     out = capsys.readouterr().out
-    assert "measured again with the grid turned 180 degrees" in out and "degree 2 there" in out
+    assert "measured again with the grid turned 180 degrees" in out
+    assert "degree 2 there, 97% of the partitioned cells placed alike" in out
     monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: example_result)
     assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
     assert "measured again" not in capsys.readouterr().out

@@ -123,26 +123,26 @@ def test_a_building_no_rule_was_chosen_on_measured_with_partitions_in_doubt_is_r
     assert partitions_in_doubt(result)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known limitation (README, 'Current status', negative controls in other grid "
-    "frames): two simulated buildings of one generator share their shell and room grid, and "
-    "in some frames the measure fits one to the other in eight pieces",
-)
 def test_another_simulated_building_in_another_grid_frame_gets_no_degree():
     """Simulated building 202's map against 201's reference: refused in the map's own frame,
-    but turned by a quarter turn (the same cells) it gets degree 7, its free space at 0.41
+    but turned by a quarter turn (the same cells) it got degree 7, its free space at 0.41
     of chance (upper bound 0.48, under the limit of 0.5), its partitions wall pieces from all
-    over the map (sessions 32 and 35). A fix makes this pass and the mark must go."""
+    over the map (sessions 32 and 35), and turned a half turn further (step 11) degree 7
+    again (sessions 38-42: a strict xfail). The two are other partitionings: the half-turned
+    frame places none of its partitioned cells where the quarter-turned one does, and since
+    session 43 the replication must place half of them alike."""
     from _controls import simulated_map, simulated_reference
 
-    from brokenness.measure.frames import in_frame
+    from brokenness.measure.frames import REPLICATED_SHARE, in_frame
 
     m, ref = simulated_map(202), simulated_reference(201)
     assert not _not_measured(m, ref).measured  # its own frame refuses it
     turned, _ = in_frame(m, "turned 90")
     result = _not_measured(turned, ref)
     assert not result.measured and result.degree is None, result.degree
+    assert result.parameters["replication_degree"] is not None  # measured there, elsewhere
+    assert result.parameters["replication_placed_alike"] < REPLICATED_SHARE
+    assert "on other partitions" in (result.reason or "")
 
 
 def test_positive_pairs_stay_measured():

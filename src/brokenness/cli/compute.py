@@ -369,13 +369,17 @@ def _threshold_line(result: BrokennessResult) -> str | None:
 
 
 def _replication_line(result: BrokennessResult) -> str | None:
-    """For a measured map with a partition in doubt: the frame it was measured in again, and
-    its degree there (one line; ``None`` when it was not needed)."""
-    if not result.measured or "replication_frame" not in result.parameters:
+    """For a measured map with a partition in doubt: the frame it was measured in again, its
+    degree there and the share of the partitioned cells placed alike (one line; ``None``
+    when it was not needed)."""
+    parameters = result.parameters
+    if not result.measured or "replication_frame" not in parameters:
         return None
+    alike = parameters.get("replication_placed_alike")
+    same = "" if alike is None else f", {alike:.0%} of the partitioned cells placed alike"
     return (
-        f"measured again with the grid {result.parameters['replication_frame']} degrees "
-        f"(a partition is in doubt): degree {result.parameters['replication_degree']} there"
+        f"measured again with the grid {parameters['replication_frame']} degrees "
+        f"(a partition is in doubt): degree {parameters['replication_degree']} there{same}"
     )
 
 

@@ -163,11 +163,13 @@ from .evidence import (
 from .explained import MAP_SHARE, drop_unexplained, explained_share
 from .frames import (
     FRAMES,
+    REPLICATED_SHARE,
     REPLICATION_FRAME,
     back_to_own_frame,
     best_of,
     in_frame,
     partitions_in_doubt,
+    placed_alike,
     to_replicate,
 )
 from .hypotheses import best_hypothesis, rival_chance
@@ -392,10 +394,17 @@ def _in_frames(
         }
     if replicate:
         again = results[1 + tried.index(REPLICATION_FRAME)]
-        parameters |= {"replication_frame": REPLICATION_FRAME, "replication_degree": again.degree}
-        if not again.measured:
+        # c in reference cells: the working grid is the reference's, or upsampled from it
+        upsampling = work.at(own.parameters["working_resolution"]).upsampling
+        alike = placed_alike(own, again, own.parameters["working_threshold"] / upsampling)
+        parameters |= {
+            "replication_frame": REPLICATION_FRAME,
+            "replication_degree": again.degree,
+            "replication_placed_alike": alike,
+        }
+        if not again.measured or alike < REPLICATED_SHARE:
             parameters["frame"] = FRAMES[0]  # the own frame's result, not measured
-            return _not_replicated(own, again, parameters, time.perf_counter() - started)
+            return _not_replicated(own, again, alike, parameters, time.perf_counter() - started)
     if not parameters:
         return own
     chosen = results[best]
@@ -407,17 +416,29 @@ def _in_frames(
 
 
 def _not_replicated(
-    own: BrokennessResult, again: BrokennessResult, parameters: dict[str, Any], seconds: float
+    own: BrokennessResult,
+    again: BrokennessResult,
+    alike: float,
+    parameters: dict[str, Any],
+    seconds: float,
 ) -> BrokennessResult:
     """``own``, measured in the map's own frame with a partition in doubt, made not measured
     because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME` (``again``) is
-    not."""
+    not, or is measured on other partitions: ``alike``, the share of ``own``'s partitioned
+    cells that ``again`` places as ``own`` does, is under
+    :data:`~brokenness.measure.frames.REPLICATED_SHARE`."""
     doubtful = len(partitions_in_doubt(own))
-    reason = (
+    found = (
         f"found in the map's own grid frame ({len(own.partitions)} partitions, {doubtful} of "
-        "them in doubt: their free space does not show their place) but not with its grid "
-        f"{REPLICATION_FRAME} degrees ({again.reason})"
+        "them in doubt: their free space does not show their place)"
     )
+    if not again.measured:
+        reason = f"{found} but not with its grid {REPLICATION_FRAME} degrees ({again.reason})"
+    else:
+        reason = (
+            f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
+            f"{alike:.0%} of its partitioned cells placed alike, not half"
+        )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(
         own,
