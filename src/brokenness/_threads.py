@@ -21,10 +21,9 @@ small (point lookups, FFTs of pooled 256-384 cell images, grids of a map's box),
 libraries' thread pools give them no speed: on two cores, OpenCV's and OpenBLAS's pools took
 1.2-1.6x the CPU of one thread for about the same wall time on maps of 600² to 4000² cells
 (one thread: 0.86-1.05x the wall time), and at 10000² the same CPU for about 8 % less wall
-time (README, "Speed and memory"). A
-variable the user set is left as it is (``OPENCV_FOR_THREADS_NUM=2 brokenness compute ...``
-gives OpenCV two threads). :func:`~brokenness.cli.main.main` called from Python leaves its
-host's threads as they are.
+time (README, "Speed and memory"). A variable the user set is left as it is
+(``OPENCV_FOR_THREADS_NUM=2 brokenness compute ...`` gives OpenCV two threads).
+:func:`~brokenness.cli.main.main` called from Python leaves its host's threads as they are.
 
 Either way the results are the same, bit for bit: no call on the measure's path gives other
 bits on another number of threads (``tests/test_thread_determinism.py``).
