@@ -444,3 +444,24 @@ def test_cli_says_when_and_where_a_map_was_measured_again(
     monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: example_result)
     assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
     assert "measured again" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("coarser", ["none", "map", "reference"])
+def test_a_true_partitioning_is_found_alike_with_the_grid_turned(coarser, monkeypatch):
+    """The bundled broken example (degree 2, every partition true), measured again with its
+    grid turned by a half turn (asked here of it): nearly every partitioned cell is placed
+    alike, also when the map or the reference is at twice the other's cell (c then counted
+    in the reference's cells)."""
+    from brokenness.io.resample import resample_to_resolution
+    from brokenness.measure import recursion
+
+    m, ref = load_map(EXAMPLE), load_map(REFERENCE)
+    if coarser == "map":
+        m = resample_to_resolution(m, 2 * m.resolution)
+    elif coarser == "reference":
+        ref = resample_to_resolution(ref, 2 * ref.resolution)
+    monkeypatch.setattr(recursion, "to_replicate", lambda result: True)
+    result = compute_brokenness(m, ref)
+    assert result.measured and result.degree == 2
+    assert result.parameters["replication_degree"] == 2
+    assert result.parameters["replication_placed_alike"] > 0.9
