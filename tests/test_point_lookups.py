@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from brokenness._points import cells_at, point_norms, squared_norms, take_rows
+from brokenness._points import cells_at, point_norms, sorted_lookup, squared_norms, take_rows
 from brokenness.measure import support
 
 
@@ -22,6 +22,17 @@ def test_point_norms_are_numpy_norms(seed: int) -> None:
     assert got.tobytes() == np.linalg.norm(offsets, axis=-1).tobytes()
     squares = squared_norms(offsets)
     assert squares.tobytes() == np.einsum("...i,...i->...", offsets, offsets).tobytes()
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_sorted_lookup_finds_exactly_the_keys_present(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    keys = np.unique(rng.integers(0, 500, size=int(rng.integers(1, 200)))).astype(np.int64)
+    probe = rng.integers(-50, 600, size=300).astype(np.int64)  # before, among, past the keys
+    at, found = sorted_lookup(keys, probe)
+    assert found.tolist() == np.isin(probe, keys).tolist()
+    assert np.array_equal(keys[at[found]], probe[found])  # where each found probe is
+    assert np.all((at >= 0) & (at < keys.size))  # a valid index everywhere
 
 
 @pytest.mark.parametrize("seed", range(20))

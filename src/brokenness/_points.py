@@ -8,7 +8,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["cells_at", "point_norms", "squared_norms", "take_rows"]
+__all__ = ["cells_at", "point_norms", "sorted_lookup", "squared_norms", "take_rows"]
 
 _T = TypeVar("_T", bound=np.generic)
 
@@ -38,6 +38,30 @@ def take_rows(points: NDArray[_T], which: NDArray[np.bool_] | NDArray[np.integer
     """
     index = np.flatnonzero(which) if which.dtype == np.bool_ else which
     return points.take(index, axis=0)
+
+
+def sorted_lookup(
+    keys: NDArray[np.int64], probe: NDArray[np.int64]
+) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """Where each of ``probe`` is among the sorted ``keys``, by binary search.
+
+    Parameters
+    ----------
+    keys : ndarray of int64, 1D
+        Distinct keys in ascending order (cells as ``row * width + col``), at least one.
+    probe : ndarray of int64
+        The keys looked up.
+
+    Returns
+    -------
+    at : ndarray of intp
+        For each probe found, its position in ``keys``; elsewhere some valid index.
+    found : ndarray of bool
+        Whether each probe is among the keys.
+    """
+    at = np.searchsorted(keys, probe)
+    at[at == keys.size] = 0
+    return at, np.asarray(keys[at] == probe)
 
 
 def cells_at(

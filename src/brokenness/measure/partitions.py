@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .._points import take_rows
+from .._points import sorted_lookup, take_rows
 from ..grid import OccupancyMap
 from ..masking import ReferenceIndex, cell_points
 from ..masking.distance import lookup_distance
@@ -97,9 +97,7 @@ def cell_components(rows: NDArray[np.intp], cols: NDArray[np.intp]) -> NDArray[n
     ordered = keys[order]
     heads, tails = [], []
     for step in (1, width - 1, width, width + 1):  # right, and the three below
-        at = np.searchsorted(ordered, keys + step)
-        at[at == n] = 0
-        hit = ordered[at] == keys + step
+        at, hit = sorted_lookup(ordered, keys + step)
         heads.append(np.flatnonzero(hit))
         tails.append(order[at[hit]])
     head, tail = np.concatenate(heads), np.concatenate(tails)

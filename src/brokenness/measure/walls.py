@@ -15,6 +15,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._points import sorted_lookup
+
 __all__ = ["LARGEST_THICKNESS", "wall_thickness"]
 
 #: The thickest walls told apart (cells): a map whose occupied cells lie mostly in squares
@@ -97,12 +99,12 @@ def _in_squares_of_two(rows: NDArray[np.int32], cols: NDArray[np.int32]) -> int:
     keys = np.sort(rows.astype(np.int64) * width + cols)
     corners = keys
     for step in (1, width, width + 1):
-        corners = corners[_present(keys, corners + step)]
+        corners = corners[sorted_lookup(keys, corners + step)[1]]
     if corners.size == 0:
         return 0
     held = np.zeros(keys.size, dtype=bool)
     for step in (0, 1, width, width + 1):
-        held |= _present(corners, keys - step)
+        held |= sorted_lookup(corners, keys - step)[1]
     return int(np.count_nonzero(held))
 
 
@@ -147,10 +149,3 @@ def _held(rows: NDArray[np.int32], cols: NDArray[np.int32], largest: int) -> lis
                 break  # a full larger square holds only cells that a smaller one holds
             counts[k - 1] += kept
     return counts
-
-
-def _present(keys: NDArray[np.int64], probe: NDArray[np.int64]) -> NDArray[np.bool_]:
-    """Whether each of ``probe`` is among the sorted ``keys``."""
-    at = np.searchsorted(keys, probe)
-    at[at == keys.size] = 0
-    return np.asarray(keys[at] == probe)
