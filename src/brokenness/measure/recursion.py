@@ -985,9 +985,9 @@ def _common_resolution(
     resolution, within the merge threshold of each other. On the realistic benchmark's
     simulated maps made at 5 cm against references at 10 cm, all partitions were true in
     33 of 42 cases with the map downsampled, and the exact degree more often with the
-    reference upsampled (see the README, "Resolutions"). A reference that would exceed the
-    cell limit upsampled (:func:`~brokenness.limits.max_cells`) is kept as it is, and the
-    map downsampled to it.
+    reference upsampled (see the README, "Resolutions and thick walls"). A reference that
+    would exceed the cell limit upsampled (:func:`~brokenness.limits.max_cells`) is kept as
+    it is, and the map downsampled to it.
     """
     identity = RigidTransform.identity()
     ref = work.reference
