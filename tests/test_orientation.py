@@ -102,3 +102,29 @@ def test_any_rotation_is_found_modulo_a_half_turn(turn):
     reference = _histogram(_walls(_FLOOR, turn))
     first = rotation_candidates(_histogram(_walls(_FLOOR)), reference, 1)[0]
     assert _off(first, turn) <= 1.0
+
+
+@pytest.mark.parametrize("n", [1, 2047, 2048, 2049, 9000, 16_384])
+def test_the_spectrum_counts_every_line_as_one_count_over_all_cells_would(n: int) -> None:
+    # the lines are counted a block of cells at a time (bounded temporaries); the
+    # spectrum is the one of a single count over all the cells, bit for bit
+    from brokenness.registration import orientation
+
+    rng = np.random.default_rng(n)
+    cells = np.round(rng.normal(size=(n, 2)) * 120.0) + [300.0, -40.0]
+    sample = cells - cells.mean(axis=0)
+    reach = float(np.sqrt((sample * sample).sum(axis=1).max()))
+    lines = 2 * math.ceil(reach) + 2
+    theta = np.arange(BINS) * (math.pi / BINS)
+    normals = np.vstack([np.cos(theta), np.sin(theta)])
+    expected = np.zeros(BINS)
+    for start in range(0, BINS, orientation._CHUNK):
+        chunk = normals[:, start : start + orientation._CHUNK]
+        rho = sample @ chunk
+        rho += reach + 0.5
+        line = rho.astype(np.intp) + np.arange(chunk.shape[1]) * lines
+        per_line = np.bincount(line.ravel(), minlength=chunk.shape[1] * lines).astype(float)
+        per_line = per_line.reshape(chunk.shape[1], lines)
+        expected[start : start + chunk.shape[1]] = np.einsum("ij,ij->i", per_line, per_line)
+    expected /= expected.sum()
+    assert hough_spectrum(cells).tobytes() == expected.tobytes()

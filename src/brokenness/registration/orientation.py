@@ -46,6 +46,9 @@ SAMPLE_CELLS = 16_384
 #: Directions transformed at once (bounded temporaries: the counts of this many directions
 #: over every line of the cells' extent).
 _CHUNK = 30
+#: Cells whose lines are counted at once (the integer lines of a chunk's directions are
+#: made for this many cells at a time, not for all: a bounded temporary beside ``rho``).
+_ROWS = 2048
 #: Peaks of the correlation closer than this many bins to a higher one are that one.
 _PEAK_SEPARATION = 3
 
@@ -76,12 +79,16 @@ def hough_spectrum(points: NDArray[np.float64]) -> NDArray[np.float64]:
     normals = np.vstack([np.cos(theta), np.sin(theta)])  # (2, BINS)
     for start in range(0, BINS, _CHUNK):
         chunk = normals[:, start : start + _CHUNK]
+        first = np.arange(chunk.shape[1]) * lines  # each direction's first line
         rho = sample @ chunk  # (N, chunk): x cos theta + y sin theta
         rho += reach + 0.5  # at least a half: truncation rounds to the nearest line
-        line = rho.astype(np.intp)
-        line += np.arange(chunk.shape[1]) * lines
-        counts = np.bincount(line.ravel(), minlength=chunk.shape[1] * lines).astype(np.float64)
-        per_line = counts.reshape(chunk.shape[1], lines)
+        counts = np.zeros(chunk.shape[1] * lines, dtype=np.intp)
+        for top in range(0, rho.shape[0], _ROWS):  # lines of a few rows at a time
+            line = rho[top : top + _ROWS].astype(np.intp)
+            line += first
+            counts += np.bincount(line.ravel(), minlength=counts.size)
+        del rho  # before the next chunk's
+        per_line = counts.astype(np.float64).reshape(chunk.shape[1], lines)
         spectrum[start : start + chunk.shape[1]] = np.einsum("ij,ij->i", per_line, per_line)
     total = spectrum.sum()
     return spectrum / total if total > 0 else spectrum
