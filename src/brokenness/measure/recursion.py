@@ -404,7 +404,7 @@ def _in_frames(
         }
         if not again.measured or alike < REPLICATED_SHARE:
             parameters["frame"] = FRAMES[0]  # the own frame's result, not measured
-            return _not_replicated(own, again, alike, parameters, time.perf_counter() - started)
+            return _not_replicated(own, again, parameters, time.perf_counter() - started)
     if not parameters:
         return own
     chosen = results[best]
@@ -416,16 +416,12 @@ def _in_frames(
 
 
 def _not_replicated(
-    own: BrokennessResult,
-    again: BrokennessResult,
-    alike: float,
-    parameters: dict[str, Any],
-    seconds: float,
+    own: BrokennessResult, again: BrokennessResult, parameters: dict[str, Any], seconds: float
 ) -> BrokennessResult:
     """``own``, measured in the map's own frame with a partition in doubt, made not measured
     because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME` (``again``) is
-    not, or is measured on other partitions: ``alike``, the share of ``own``'s partitioned
-    cells that ``again`` places as ``own`` does, is under
+    not, or is measured on other partitions: the share of ``own``'s partitioned cells that
+    ``again`` places as ``own`` does (``parameters["replication_placed_alike"]``) is under
     :data:`~brokenness.measure.frames.REPLICATED_SHARE`."""
     doubtful = len(partitions_in_doubt(own))
     found = (
@@ -437,7 +433,8 @@ def _not_replicated(
     else:
         reason = (
             f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{alike:.0%} of its partitioned cells placed alike, not half"
+            f"{parameters['replication_placed_alike']:.0%} of its partitioned cells placed "
+            "alike, not half"
         )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(
