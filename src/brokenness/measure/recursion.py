@@ -141,7 +141,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._memory import reused_pages, small_pages
+from .._memory import small_pages
 from .._points import take_rows
 from ..errors import MapError, NothingFoundWarning, ParameterError
 from ..grid import OccupancyMap
@@ -318,12 +318,9 @@ def compute_brokenness(
     -----
     The call runs with numpy's transparent huge-page advice turned off, and restores it on
     return (:func:`brokenness._memory.small_pages`): on kernels that compact memory to find
-    huge pages, fresh grids of large maps cost seconds of system time otherwise. For maps
-    whose float32 grid exceeds 32 MiB it also has glibc's ``malloc`` reuse freed grids
-    rather than map fresh pages for each, and gives the free memory back on return
-    (:func:`brokenness._memory.reused_pages`). Results depend on neither. No thread count
-    is set here (a batch's workers run on one thread each: see the README, "Evaluate many
-    maps").
+    huge pages, fresh grids of large maps cost seconds of system time otherwise. Results do
+    not depend on it. No thread count is set here (a batch's workers run on one thread
+    each: see the README, "Evaluate many maps").
 
     References
     ----------
@@ -340,22 +337,15 @@ def compute_brokenness(
     >>> compute_brokenness(room, room).degree
     0
     """
-    started = time.perf_counter()
     opts = _options(options, overrides)
     with small_pages():  # fresh grids without huge-page compaction (see brokenness._memory)
-        original = _as_map(map, "map")
-        ref = _as_map(reference, "reference")
-        # freed grids reused, not faulted in afresh: the largest temporary, a float32 grid
-        # of the larger map, decides whether it is needed (see brokenness._memory)
-        with reused_pages(4 * max(original.states.size, ref.states.size)):
-            return _in_frames(original, ref, opts, started)
+        return _in_frames(map, reference, opts)
 
 
 def _in_frames(
-    original: OccupancyMap,
-    ref: OccupancyMap,
+    map: MapLike,  # noqa: A002 - the paper's name
+    reference: MapLike,
     opts: BrokennessOptions,
-    started: float,
 ) -> BrokennessResult:
     """:func:`_compute` in the map's own frame and, where needed, in other grid frames.
 
@@ -375,7 +365,10 @@ def _in_frames(
     cannot give a degree where the map's own frame would give none. The result's
     ``parameters`` say which frame it came from (``frame``) and the degree of every frame
     tried (``frame_degrees``, ``None`` where not measured), so that a user sees how far
-    they agree. ``started``: the :func:`time.perf_counter` of the call."""
+    they agree."""
+    started = time.perf_counter()
+    original = _as_map(map, "map")
+    ref = _as_map(reference, "reference")
     once = replace(opts, frames=1)
     work = ReferenceWork(ref)  # the reference's share, made once for every frame
     own = _compute(original, work, once)
