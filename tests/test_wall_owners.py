@@ -105,3 +105,9 @@ def test_the_free_space_of_unchanged_partitions_is_made_once(
     swapped = free_space(found[::-1], points, clear, corner_index)
     assert len(made) == 6 and set(np.unique(first.owner)) == {0, 1}
     np.testing.assert_array_equal(swapped.owner, 1 - first.owner)
+    # members changed in place after a call: no longer the partitions it was made for
+    edited = [Found(f.transform, f.members.copy(), 1.0, 0.0) for f in found]
+    free_space(edited, points, clear, corner_index)
+    edited[1].members[: edited[1].members.size // 2] = edited[0].members[0]
+    free_space(edited, points, clear, corner_index)
+    assert len(made) == 8

@@ -337,13 +337,19 @@ class ClearFree:
 
 @dataclass(frozen=True, eq=False)
 class _Partitioning:
-    """What :func:`free_space` is made of besides the clear cells: the partitions (their
-    transforms and members, in order), the map's occupied points and the reference's index
-    (the last two the same objects: a call's own)."""
+    """What :func:`free_space` is made of besides the clear cells: the partitions' transforms
+    and members (copies), in order, the map's occupied points and the reference's index (the
+    last two the same objects: a call's own, which nothing changes)."""
 
-    found: tuple[Found, ...]
+    parts: tuple[tuple[RigidTransform, NDArray[np.intp]], ...]
     points: NDArray[np.float64]
     index: ReferenceIndex
+
+    @classmethod
+    def of(
+        cls, found: list[Found], points: NDArray[np.float64], index: ReferenceIndex
+    ) -> _Partitioning:
+        return cls(tuple((f.transform, f.members.copy()) for f in found), points, index)
 
     def same_as(self, other: _Partitioning) -> bool:
         """Whether ``other`` makes the same free space: the same points and index objects,
@@ -351,10 +357,10 @@ class _Partitioning:
         return (
             self.points is other.points
             and self.index is other.index
-            and len(self.found) == len(other.found)
+            and len(self.parts) == len(other.parts)
             and all(
-                a.transform == b.transform and np.array_equal(a.members, b.members)
-                for a, b in zip(self.found, other.found, strict=True)
+                t == u and np.array_equal(m, n)
+                for (t, m), (u, n) in zip(self.parts, other.parts, strict=True)
             )
         )
 
@@ -451,7 +457,7 @@ def free_space(
     relocation and the tests of a call ask for the free space of partitions they did not
     change, and at 8000² cells each takes a third of a second (the labels of the nearest
     walls, below)."""
-    key = _Partitioning(tuple(found), points, index)
+    key = _Partitioning.of(found, points, index)
     for made, owned in clear._last:
         if made.same_as(key):
             return owned
