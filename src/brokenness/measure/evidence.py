@@ -351,16 +351,18 @@ class _Partitioning:
     ) -> _Partitioning:
         return cls(tuple((f.transform, f.members.copy()) for f in found), points, index)
 
-    def same_as(self, other: _Partitioning) -> bool:
-        """Whether ``other`` makes the same free space: the same points and index objects,
+    def made_of(
+        self, found: list[Found], points: NDArray[np.float64], index: ReferenceIndex
+    ) -> bool:
+        """Whether ``found`` makes the same free space: the same points and index objects,
         equal transforms and equal members, partition by partition."""
         return (
-            self.points is other.points
-            and self.index is other.index
-            and len(self.parts) == len(other.parts)
+            self.points is points
+            and self.index is index
+            and len(self.parts) == len(found)
             and all(
-                t == u and np.array_equal(m, n)
-                for (t, m), (u, n) in zip(self.parts, other.parts, strict=True)
+                t == f.transform and np.array_equal(m, f.members)
+                for (t, m), f in zip(self.parts, found, strict=True)
             )
         )
 
@@ -457,12 +459,11 @@ def free_space(
     relocation and the tests of a call ask for the free space of partitions they did not
     change, and at 8000² cells each takes a third of a second (the labels of the nearest
     walls, below)."""
-    key = _Partitioning.of(found, points, index)
     for made, owned in clear._last:
-        if made.same_as(key):
+        if made.made_of(found, points, index):
             return owned
     owned = _free_space(found, points, clear, index)
-    clear._last[:] = [(key, owned)]
+    clear._last[:] = [(_Partitioning.of(found, points, index), owned)]
     return owned
 
 
