@@ -288,16 +288,23 @@ def example_result(example) -> brokenness.BrokennessResult:
     return compute_brokenness(*example)
 
 
-def _turned(result: brokenness.BrokennessResult, m: OccupancyMap, shift: float = 0.0):
+def _turned(
+    result: brokenness.BrokennessResult,
+    m: OccupancyMap,
+    shift: float = 0.0,
+    moved: tuple[int, ...] | None = None,
+):
     """``result`` of the map ``m`` as the map with its grid turned 180 degrees would report it
-    (its labels turned, each transform taking the turned grid's cells), each transform
-    then moved by ``shift`` reference cells along x."""
+    (its labels turned, each transform taking the turned grid's cells), each transform (of
+    the partitions ``moved`` only, if given) then moved by ``shift`` reference cells along x."""
     _, cells = in_frame(m, "turned 180")
     back = cells.inverse()
     parts = tuple(
         replace(
             p,
-            transform=RigidTransform(0.0, shift, 0.0).compose(p.transform.compose(back)),
+            transform=RigidTransform(
+                0.0, shift if moved is None or p.index in moved else 0.0, 0.0
+            ).compose(p.transform.compose(back)),
         )
         for p in result.partitions
     )
@@ -305,15 +312,18 @@ def _turned(result: brokenness.BrokennessResult, m: OccupancyMap, shift: float =
     return replace(result, partitions=parts, labels=labels)
 
 
-def _replicated(example, real, monkeypatch, again_measured: bool, frames: int = 1, shift=0.0):
+def _replicated(
+    example, real, monkeypatch, again_measured: bool, frames: int = 1, shift=0.0, moved=None
+):
     """``compute_brokenness`` whose own frame is the example (its result ``real``) measured
-    with partitions in doubt, and whose map with its grid turned 180 degrees is (or is
-    not) measured: on the same partitions, or on partitions moved by ``shift`` cells."""
+    with partitions in doubt (1 and 2, 41 % of the partitioned cells), and whose map with
+    its grid turned 180 degrees is (or is not) measured: on the same partitions, or on
+    partitions (those of ``moved``, default all) moved by ``shift`` cells."""
     from brokenness.measure import recursion
 
     m, ref = example
     own = _with_bounds(real, [(0.3, 0.1), (0.35, 0.7), (0.34, 0.8)])
-    again = _turned(own, m, shift)
+    again = _turned(own, m, shift, moved)
     if not again_measured:
         again = replace(again, measured=False, degree=None, reason="no")
     calls = []
@@ -357,6 +367,37 @@ def test_a_map_measured_again_turned_on_other_partitions_is_not_measured(
     # 1.9 cells apart: within c, the same placement
     result, _, said = _replicated(example, example_result, monkeypatch, True, shift=1.9)
     assert result.measured and result.parameters["replication_placed_alike"] == 1.0 and not said
+
+
+def test_a_map_whose_partitions_in_doubt_are_placed_elsewhere_turned_is_not_measured(
+    example, example_result, monkeypatch
+):
+    """The partition shown in place (59 % of the partitioned cells) found again, the two in
+    doubt 3 cells away: most of the partitioned cells are placed alike, but none of those
+    the replication is asked for (session 46: fresh simulated building 217 against 216,
+    50 % and 0 %)."""
+    result, calls, said = _replicated(
+        example, example_result, monkeypatch, True, shift=3.0, moved=(1, 2)
+    )
+    assert len(calls) == 2
+    assert result.measured is False and result.degree is None
+    assert result.parameters["replication_placed_alike"] == pytest.approx(
+        np.count_nonzero(example_result.labels == 0) / np.count_nonzero(example_result.labels >= 0)
+    )
+    assert result.parameters["replication_placed_alike"] > 0.5
+    assert result.parameters["replication_placed_alike_in_doubt"] == 0.0
+    assert "0% of the cells of its partitions in doubt placed alike, not half" in result.reason
+    assert len(said) == 1
+    # the partition shown in place moved instead: the partitions in doubt are found again,
+    # but not most of the partitioned cells
+    result, _, _ = _replicated(example, example_result, monkeypatch, True, shift=3.0, moved=(0,))
+    assert result.measured is False
+    assert result.parameters["replication_placed_alike_in_doubt"] == 1.0
+    assert "of its partitioned cells placed alike, not half" in result.reason
+    # both found again
+    result, _, said = _replicated(example, example_result, monkeypatch, True, shift=1.0)
+    assert result.measured and not said
+    assert result.parameters["replication_placed_alike_in_doubt"] == 1.0
 
 
 def test_a_map_not_measured_again_turned_is_not_measured(example, example_result, monkeypatch):
@@ -407,6 +448,11 @@ def test_placed_alike_counts_the_cells_both_results_place_within_the_tolerance(
     assert placed_alike(own, unassigned, 2.0) == pytest.approx(share)
     nothing = replace(own, labels=np.where(own.labels >= 0, -2, own.labels).astype(np.int16))
     assert placed_alike(nothing, own, 2.0) == 0.0
+    # the cells of some partitions only: the one placed elsewhere, the others, none
+    assert placed_alike(own, one_off, 2.0, among=[0]) == 0.0
+    assert placed_alike(own, one_off, 2.0, among=[1, 2]) == 1.0
+    assert placed_alike(own, one_off, 2.0, among=[0, 1, 2]) == pytest.approx(share)
+    assert placed_alike(own, own, 2.0, among=[]) == 0.0
 
 
 def test_a_map_with_its_partitions_shown_in_place_is_computed_once(
@@ -434,13 +480,16 @@ def test_cli_says_when_and_where_a_map_was_measured_again(
             "replication_frame": "turned 180",
             "replication_degree": 2,
             "replication_placed_alike": 0.9712,
+            "replication_placed_alike_in_doubt": 0.804,
         },
     )
     monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: replicated)
     assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
     out = capsys.readouterr().out
     assert "measured again with the grid turned 180 degrees" in out
-    assert "degree 2 there, 97% of the partitioned cells placed alike" in out
+    assert (
+        "degree 2 there, 97% of the partitioned cells placed alike (80% of those in doubt)" in out
+    )
     monkeypatch.setattr(brokenness.measure, "compute_brokenness", lambda *a, **k: example_result)
     assert main(["compute", str(EXAMPLE), str(REFERENCE)]) == 0
     assert "measured again" not in capsys.readouterr().out

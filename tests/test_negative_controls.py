@@ -145,6 +145,22 @@ def test_another_simulated_building_in_another_grid_frame_gets_no_degree():
     assert "on other partitions" in (result.reason or "")
 
 
+def test_a_fresh_simulated_building_fitted_on_a_shared_shell_gets_no_degree():
+    """Fresh simulated building 217's map against 216's reference (the two share the
+    generator's shell; seeds no rule was chosen on, session 46): in the map's own frame the
+    shell and most rooms fit at nearly the identity (46 % of the map, its free space well
+    in place), and five wall pieces elsewhere, three of them in doubt, got degree 5. The
+    half-turned frame placed half of the partitioned cells alike (the shell again), none of
+    those in doubt: the replication must find the partitions in doubt again."""
+    from _controls import simulated_map, simulated_reference
+
+    result = _not_measured(simulated_map(217), simulated_reference(216))
+    assert not result.measured and result.degree is None, result.degree
+    assert result.parameters["replication_placed_alike"] >= 0.5
+    assert result.parameters["replication_placed_alike_in_doubt"] < 0.5
+    assert "of the cells of its partitions in doubt placed alike" in (result.reason or "")
+
+
 def test_positive_pairs_stay_measured():
     """The bundled broken example and a map against itself keep their degree."""
     example = Path(__file__).parents[1] / "examples"

@@ -377,6 +377,9 @@ def _replication_line(result: BrokennessResult) -> str | None:
         return None
     alike = parameters.get("replication_placed_alike")
     same = "" if alike is None else f", {alike:.0%} of the partitioned cells placed alike"
+    in_doubt = parameters.get("replication_placed_alike_in_doubt")
+    if in_doubt is not None:
+        same += f" ({in_doubt:.0%} of those in doubt)"
     return (
         f"measured again with the grid {parameters['replication_frame']} degrees "
         f"(a partition is in doubt): degree {parameters['replication_degree']} there{same}"

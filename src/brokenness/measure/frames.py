@@ -34,7 +34,10 @@ another start has no partition to place better, and the map costs one frame.
 One frame is also used by default, to replicate a verdict (README step 11): a map measured
 with a partition in doubt (:func:`to_replicate`) is measured only if the map in
 :data:`REPLICATION_FRAME` is measured too, on the same partitions (:func:`placed_alike`:
-at least :data:`REPLICATED_SHARE` of the partitioned cells placed alike, session 43).
+at least :data:`REPLICATED_SHARE` of the partitioned cells placed alike, session 43, and
+of the cells of the partitions in doubt, session 46: those are the partitions the
+replication is asked for, and the others, shown in place by their own free space, can make
+up half of the map alone).
 Such a verdict rests in part on partitions that a greedy search laid on the grid placed and
 whose own free space does not show their place, and it is the map's free space as a whole
 that decides it, where the margin can be thin: the search can pass it in one frame and not
@@ -85,9 +88,10 @@ SHIFT: tuple[int, int] = (17, 29)
 #: (:func:`to_replicate`): the first of the other frames, the grid turned by a half turn
 #: (every pooled image, tile and row-major order of the search laid on it differs).
 REPLICATION_FRAME = FRAMES[1]
-#: The least share of a replicated map's partitioned cells that the replication must place
-#: where the map's own frame places them (:func:`placed_alike`): most of the map, as the
-#: partitions must hold half of it to measure it at all (README steps 9 and 11).
+#: The least share of a replicated map's partitioned cells, and of the cells of its
+#: partitions in doubt, that the replication must place where the map's own frame places
+#: them (:func:`placed_alike`): most of them, as the partitions must hold half of the map
+#: to measure it at all (README steps 9 and 11).
 REPLICATED_SHARE = 0.5
 
 
@@ -140,10 +144,15 @@ def back_to_own_frame(
     )
 
 
-def placed_alike(own: BrokennessResult, again: BrokennessResult, tolerance: float) -> float:
-    """The share of the cells in ``own``'s partitions that ``again`` places where ``own``
-    does: each cell in a partition of both, the two transforms putting it at most
-    ``tolerance`` reference cells apart.
+def placed_alike(
+    own: BrokennessResult,
+    again: BrokennessResult,
+    tolerance: float,
+    among: Sequence[int] | None = None,
+) -> float:
+    """The share of the cells in ``own``'s partitions (those of ``among`` only, if given)
+    that ``again`` places where ``own`` does: each cell in a partition of both, the two
+    transforms putting it at most ``tolerance`` reference cells apart.
 
     ``again`` is the same map measured in another frame, reported in the map's own cells
     (:func:`back_to_own_frame`). A true partitioning is one of the map, not of the frame:
@@ -159,14 +168,20 @@ def placed_alike(own: BrokennessResult, again: BrokennessResult, tolerance: floa
     tolerance : float
         How far apart, in reference cells, two placements of a cell may land and count as
         one (the measure's threshold ``c``, in reference cells).
+    among : sequence of int, optional
+        The indices of the partitions of ``own`` whose cells are counted (default: all).
 
     Returns
     -------
     float
-        In ``[0, 1]``; 0 when ``own`` has no partitioned cell.
+        In ``[0, 1]``; 0 when the partitions counted hold no cell.
     """
+    labels = np.asarray(own.labels)
     # flat indices (a 2D np.nonzero is ten times slower on a large grid), row-major
-    cells = np.flatnonzero(np.asarray(own.labels) >= 0)
+    if among is None:
+        cells = np.flatnonzero(labels >= 0)
+    else:
+        cells = np.flatnonzero(np.isin(labels, np.asarray(list(among), dtype=labels.dtype)))
     if cells.size == 0:
         return 0.0
     rows, cols = np.divmod(cells, own.labels.shape[1])

@@ -352,8 +352,10 @@ def _in_frames(
     A map measured with a partition in doubt
     (:func:`~brokenness.measure.frames.to_replicate`) is measured again with its grid
     turned by a half turn (:data:`~brokenness.measure.frames.REPLICATION_FRAME`), and is
-    measured only if it is there too (README step 11); the result's ``parameters`` then
-    say so (``replication_frame``, ``replication_degree``).
+    measured only if it is there too, on the same partitions: half of its partitioned cells,
+    and half of the cells of its partitions in doubt, placed alike (README step 11); the
+    result's ``parameters`` then say so (``replication_frame``, ``replication_degree``,
+    ``replication_placed_alike``, ``replication_placed_alike_in_doubt``).
 
     With ``opts.frames`` over 1, a map measured with a partition in doubt
     (:func:`~brokenness.measure.frames.in_doubt`) is computed in the next ``opts.frames - 1``
@@ -396,13 +398,19 @@ def _in_frames(
         again = results[1 + tried.index(REPLICATION_FRAME)]
         # c in reference cells: the working grid is the reference's, or upsampled from it
         upsampling = work.at(own.parameters["working_resolution"]).upsampling
-        alike = placed_alike(own, again, own.parameters["working_threshold"] / upsampling)
+        tolerance = own.parameters["working_threshold"] / upsampling
+        # the partitions the replication is asked for (none only if asked otherwise)
+        doubtful = [p.index for p in partitions_in_doubt(own)]
+        alike = placed_alike(own, again, tolerance)
+        alike_in_doubt = placed_alike(own, again, tolerance, doubtful) if doubtful else None
         parameters |= {
             "replication_frame": REPLICATION_FRAME,
             "replication_degree": again.degree,
             "replication_placed_alike": alike,
+            "replication_placed_alike_in_doubt": alike_in_doubt,
         }
-        if not again.measured or alike < REPLICATED_SHARE:
+        shares = [alike] if alike_in_doubt is None else [alike, alike_in_doubt]
+        if not again.measured or min(shares) < REPLICATED_SHARE:
             parameters["frame"] = FRAMES[0]  # the own frame's result, not measured
             return _not_replicated(own, again, parameters, time.perf_counter() - started)
     if not parameters:
@@ -421,20 +429,27 @@ def _not_replicated(
     """``own``, measured in the map's own frame with a partition in doubt, made not measured
     because the map in :data:`~brokenness.measure.frames.REPLICATION_FRAME` (``again``) is
     not, or is measured on other partitions: the share of ``own``'s partitioned cells that
-    ``again`` places as ``own`` does (``parameters["replication_placed_alike"]``) is under
-    :data:`~brokenness.measure.frames.REPLICATED_SHARE`."""
+    ``again`` places as ``own`` does (``parameters["replication_placed_alike"]``), or of the
+    cells of its partitions in doubt (``parameters["replication_placed_alike_in_doubt"]``),
+    is under :data:`~brokenness.measure.frames.REPLICATED_SHARE`."""
     doubtful = len(partitions_in_doubt(own))
     found = (
         f"found in the map's own grid frame ({len(own.partitions)} partitions, {doubtful} of "
         "them in doubt: their free space does not show their place)"
     )
+    alike = parameters["replication_placed_alike"]
     if not again.measured:
         reason = f"{found} but not with its grid {REPLICATION_FRAME} degrees ({again.reason})"
+    elif alike < REPLICATED_SHARE:
+        reason = (
+            f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
+            f"{alike:.0%} of its partitioned cells placed alike, not half"
+        )
     else:
         reason = (
             f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{parameters['replication_placed_alike']:.0%} of its partitioned cells placed "
-            "alike, not half"
+            f"{parameters['replication_placed_alike_in_doubt']:.0%} of the cells of its "
+            "partitions in doubt placed alike, not half"
         )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(

@@ -86,6 +86,7 @@ _RUN_SPECIFIC = frozenset(
         "replication_frame",
         "replication_degree",
         "replication_placed_alike",
+        "replication_placed_alike_in_doubt",
     }
 )
 
