@@ -14,7 +14,6 @@ one of its degree; the exact-match rates over many seeds are in the README
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from brokenness import OccupancyMap, compute_brokenness
@@ -52,13 +51,17 @@ def test_low_degrees_exactly(degree, seed):
 
 @pytest.mark.parametrize("degree", [3, 4, 5])
 def test_higher_degrees_within_bounds(degree):
+    """Of four maps, each measured one is within a partition of its degree; at most one is
+    not measured (seed 2 at degree 4 since session 46: its partition in doubt is placed
+    elsewhere with the grid turned by a half turn, README step 11)."""
     found = []
     for seed in (0, 1, 2, 3):
         sim = simulate_broken_map(seed=seed, degree=degree)
         assert sim.expected_degree == degree
         found.append(compute_brokenness(sim.map, sim.reference).degree)
-    errors = np.abs(np.array(found) - degree)
-    assert errors.max() <= 1, found
+    measured = [d for d in found if d is not None]
+    assert len(measured) >= 3, found
+    assert max(abs(d - degree) for d in measured) <= 1, found
 
 
 @pytest.mark.parametrize(("degree", "seed"), [(2, 1014), (3, 1012), (3, 1019)])
@@ -132,5 +135,9 @@ def test_a_partition_at_a_twin_takes_a_hypothesis_of_an_earlier_registration(mon
     assert max(_transform_errors(result, sim)) < 1.0
     monkeypatch.setattr(recursion, "offered", lambda *args: [])  # no hypothesis offered again
     alone = compute_brokenness(sim.map, sim.reference)
-    assert alone.degree == degree
+    assert len(alone.partitions) == degree + 1
     assert max(_transform_errors(alone, sim)) > 50.0
+    # and the partition at the twin, in doubt, is not found again with the grid turned by a
+    # half turn: since session 46 the map is then not measured (README step 11)
+    assert not alone.measured and alone.degree is None
+    assert "of the cells of its partitions in doubt placed alike" in (alone.reason or "")
