@@ -443,13 +443,13 @@ def _not_replicated(
     elif alike < REPLICATED_SHARE:
         reason = (
             f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{alike:.0%} of its partitioned cells placed alike, not half"
+            f"{_short_of_half(alike)} of its partitioned cells placed alike, not half"
         )
     else:
         reason = (
             f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{parameters['replication_placed_alike_in_doubt']:.0%} of the cells of its "
-            "partitions in doubt placed alike, not half"
+            f"{_short_of_half(parameters['replication_placed_alike_in_doubt'])} of the cells "
+            "of its partitions in doubt placed alike, not half"
         )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(
@@ -460,6 +460,12 @@ def _not_replicated(
         parameters=own.parameters | parameters,
         seconds=seconds,
     )
+
+
+def _short_of_half(share: float) -> str:
+    """``share`` (under a half) as a percentage that does not round up to the half: whole
+    percents, rounded down (``0.4954`` is ``49%``)."""
+    return f"{math.floor(100 * share)}%"
 
 
 def _compute(
