@@ -217,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         "--first-seed",
         type=int,
         default=0,
-        help="seeds FIRST.. (sessions 27-45 ran 0-7: 8 is held out)",
+        help="seeds FIRST.. (0-7: the rules were checked on them; 8-9 first run in session 46)",
     )
     ap.add_argument("--cache", type=Path, default=realistic.RESULTS / "drawn")
     ap.add_argument("--out", type=Path, default=realistic.RESULTS / "drawn_buildings.json")
