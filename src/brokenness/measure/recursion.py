@@ -437,19 +437,16 @@ def _not_replicated(
         f"found in the map's own grid frame ({len(own.partitions)} partitions, {doubtful} of "
         "them in doubt: their free space does not show their place)"
     )
-    alike = parameters["replication_placed_alike"]
     if not again.measured:
         reason = f"{found} but not with its grid {REPLICATION_FRAME} degrees ({again.reason})"
-    elif alike < REPLICATED_SHARE:
+    else:  # the share short of half: of all the partitioned cells first, else those in doubt
+        share, cells = parameters["replication_placed_alike"], "its partitioned cells"
+        if share >= REPLICATED_SHARE:
+            share = parameters["replication_placed_alike_in_doubt"]
+            cells = "the cells of its partitions in doubt"
         reason = (
             f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{_short_of_half(alike)} of its partitioned cells placed alike, not half"
-        )
-    else:
-        reason = (
-            f"{found}, and with its grid {REPLICATION_FRAME} degrees on other partitions: "
-            f"{_short_of_half(parameters['replication_placed_alike_in_doubt'])} of the cells "
-            "of its partitions in doubt placed alike, not half"
+            f"{_short_of_half(share)} of {cells} placed alike, not half"
         )
     warnings.warn(f"the degree was not measured: {reason}", NothingFoundWarning, stacklevel=4)
     return replace(
